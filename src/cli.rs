@@ -1,0 +1,1 @@
+//! Headless command implementations behind `facesynth <command>`; `main.rs` only parses.

@@ -1,0 +1,29 @@
+//! facesynth — 3D facial expression synthesis with a layered FEM face, and its use in 3D face
+//! recognition (after "3D-Facial Expression Synthesis and its Application to Face Recognition
+//! Systems"). Units everywhere: millimetres, pascals, newtons.
+//!
+//! Module map (one paper step per file):
+
+/// Headless command implementations behind `facesynth <command>` (main.rs only parses).
+pub mod cli;
+/// Typed errors of the library (one-line messages that name the file and the problem).
+pub mod error;
+/// The 13 named feature points shared by the generic face, detection and registration.
+pub mod feature_points;
+/// The project's own generic face, built by code (paper section 2, Figure 3b).
+pub mod generic_face;
+/// Mesh readers and writers: VRML 1.0/2.0, OBJ, PLY, xyz point clouds.
+pub mod io;
+/// The polygon mesh (positions in mm, faces as they come), topology and normals.
+pub mod mesh;
+
+/// The editor window: eframe app, panels, worker thread.
+#[cfg(feature = "gui")]
+pub mod app;
+/// wgpu pipelines and the egui_wgpu callback bridge (no egui panels here).
+#[cfg(feature = "gui")]
+pub mod render;
+
+pub use error::{Error, Result};
+pub use feature_points::{FeaturePoint, Landmarks};
+pub use mesh::Mesh;
