@@ -1,1 +1,125 @@
 //! Headless command implementations behind `facesynth <command>`; `main.rs` only parses.
+//!
+//! Every command prints one JSON object on stdout (machine-readable, pipe into `jq`) and
+//! returns an error that `main` prints as one line before exiting with code 1.
+
+use crate::{generic_face, io};
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// facesynth — 3D facial expression synthesis with a layered FEM face, and 3D face recognition.
+///
+/// With no command (or just a FILE) the editor window opens.
+#[derive(Debug, Parser)]
+#[command(name = "facesynth", version, args_conflicts_with_subcommands = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    #[command(flatten)]
+    pub view: ViewArgs,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Print a mesh file's figures as JSON (vertices, faces, quads, triangles, bounding box).
+    Info {
+        /// Mesh file (.wrl .vrml .obj .ply .xyz .txt).
+        file: PathBuf,
+    },
+    /// Convert a mesh between formats (by extension; writes .obj or .ply).
+    Convert { input: PathBuf, output: PathBuf },
+    /// Write the built-in generic face and its 13 feature points.
+    Generic {
+        /// Output mesh (.obj or .ply).
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write the feature points as JSON: name → [x, y, z] mm.
+        #[arg(long)]
+        landmarks: Option<PathBuf>,
+    },
+    /// Open the editor window on a scan (or the generic face).
+    View(ViewArgs),
+}
+
+/// Options of the editor window.
+#[derive(Debug, Clone, Default, Args)]
+pub struct ViewArgs {
+    /// Mesh to open; without it the generic face is shown.
+    pub file: Option<PathBuf>,
+    /// Render one frame after loading, save it as PNG and exit (for CI and reviews).
+    #[arg(long, value_name = "PNG")]
+    pub screenshot: Option<PathBuf>,
+    /// Window width in logical pixels.
+    #[arg(long, default_value_t = 1280)]
+    pub width: u32,
+    /// Window height in logical pixels.
+    #[arg(long, default_value_t = 800)]
+    pub height: u32,
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Some(Command::Info { file }) => print_json(&info(&file)?),
+        Some(Command::Convert { input, output }) => {
+            let mesh = io::read_mesh(&input)?;
+            io::write_mesh(&output, &mesh)?;
+            print_json(&json!({
+                "input": input, "output": output,
+                "vertices": mesh.vertex_count(), "faces": mesh.face_count(),
+            }))
+        }
+        Some(Command::Generic { out, landmarks }) => {
+            let face = generic_face::build();
+            io::write_mesh(&out, &face.mesh)?;
+            let points = face.landmarks();
+            if let Some(path) = &landmarks {
+                let text = serde_json::to_string_pretty(&points)?;
+                io::write_text_atomic(path, &(text + "\n"))?;
+            }
+            let counts = face.mesh.face_counts();
+            print_json(&json!({
+                "out": out, "landmarks_file": landmarks,
+                "vertices": face.mesh.vertex_count(), "faces": counts.faces,
+                "quads": counts.quads, "triangles": counts.triangles,
+                "landmarks": points,
+            }))
+        }
+        Some(Command::View(args)) => view(args),
+        None => view(cli.view),
+    }
+}
+
+/// `facesynth info FILE` as a JSON value.
+pub fn info(file: &Path) -> Result<serde_json::Value> {
+    let mesh = io::read_mesh(file)?;
+    let counts = mesh.face_counts();
+    let (lo, hi) = mesh.bbox_mm().context("mesh is empty")?;
+    let round = |v: glam::DVec3| v.to_array().map(|c| (c * 1e4).round() / 1e4);
+    Ok(json!({
+        "file": file,
+        "vertices": mesh.vertex_count(),
+        "faces": counts.faces,
+        "quads": counts.quads,
+        "triangles": counts.triangles,
+        "bbox_min_mm": round(lo),
+        "bbox_max_mm": round(hi),
+    }))
+}
+
+fn print_json(value: &serde_json::Value) -> Result<()> {
+    println!("{}", serde_json::to_string_pretty(value)?);
+    Ok(())
+}
+
+#[cfg(feature = "gui")]
+fn view(args: ViewArgs) -> Result<()> {
+    crate::app::run(args)
+}
+
+#[cfg(not(feature = "gui"))]
+fn view(_args: ViewArgs) -> Result<()> {
+    anyhow::bail!("this facesynth was built without the `gui` feature; the editor is unavailable")
+}
