@@ -12,6 +12,8 @@ pub mod error;
 pub mod feature_points;
 /// The project's own generic face, built by code (paper section 2, Figure 3b).
 pub mod generic_face;
+/// Ground truth of the synthetic GavabDB-like benchmark (../shared/bench/synth_gavab.py).
+pub mod ground_truth;
 /// Mesh readers and writers: VRML 1.0/2.0, OBJ, PLY, xyz point clouds.
 pub mod io;
 /// The polygon mesh (positions in mm, faces as they come), topology and normals.

@@ -1,0 +1,55 @@
+//! Shared test helpers: paths into ../shared and generated synthetic scans.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+/// `../shared` beside the crate root (the layout of every checkout and of CI).
+pub fn shared_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")
+}
+
+/// A real GavabDB file, e.g. `gavab("cara1_frontal1.wrl")`.
+pub fn gavab(name: &str) -> PathBuf {
+    shared_dir().join("data/gavabdb").join(name)
+}
+
+static GENERATE: Mutex<()> = Mutex::new(());
+
+/// A synthetic GavabDB-like dataset made by `../shared/bench/synth_gavab.py` (needs python3
+/// with numpy), generated once into `target/synth/` and reused by later test runs.
+/// Same seed → same subjects; `clean` gives the noise-free twin.
+pub fn synth_dataset(subjects: usize, seed: u64, clean: bool) -> PathBuf {
+    let _guard = GENERATE.lock().unwrap_or_else(|e| e.into_inner());
+    let name = format!(
+        "s{subjects}-seed{seed}{}",
+        if clean { "-clean" } else { "" }
+    );
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target"));
+    let dir = target.join("synth").join(name);
+    if dir.join("manifest.json").exists() {
+        return dir;
+    }
+    let tmp = dir.with_extension(format!("tmp{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let mut cmd = Command::new("python3");
+    cmd.arg(shared_dir().join("bench/synth_gavab.py"))
+        .arg("--out")
+        .arg(&tmp)
+        .args(["--subjects", &subjects.to_string(), "--seed", &seed.to_string()]);
+    if clean {
+        cmd.arg("--clean");
+    }
+    let out = cmd.output().expect("python3 must be installed to generate test data");
+    assert!(
+        out.status.success(),
+        "synth_gavab.py failed (is numpy installed?): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::rename(&tmp, &dir).expect("move generated dataset into place");
+    dir
+}
