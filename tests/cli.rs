@@ -1,0 +1,104 @@
+//! The command line end to end: JSON on stdout, one-line errors and exit code 1 on bad input.
+
+mod common;
+
+use std::process::Command;
+
+fn facesynth(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(args)
+        .output()
+        .expect("run facesynth")
+}
+
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "facesynth failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
+#[test]
+fn info_reports_gavabdb_counts_in_millimetres() {
+    let path = common::gavab("cara1_frontal1.wrl");
+    let v = json_of(&facesynth(&["info", path.to_str().unwrap()]));
+    assert_eq!(v["vertices"], 13709);
+    assert_eq!(v["faces"], 13395);
+    assert_eq!(v["quads"], 13215);
+    assert_eq!(v["triangles"], 180);
+    let width = v["bbox_max_mm"][0].as_f64().unwrap() - v["bbox_min_mm"][0].as_f64().unwrap();
+    assert!((100.0..250.0).contains(&width), "face width {width} mm");
+}
+
+#[test]
+fn convert_round_trips_through_obj_and_ply() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = common::gavab("cara1_sonrisa.wrl");
+    for ext in ["obj", "ply"] {
+        let out = dir.path().join(format!("sonrisa.{ext}"));
+        json_of(&facesynth(&[
+            "convert",
+            src.to_str().unwrap(),
+            out.to_str().unwrap(),
+        ]));
+        let v = json_of(&facesynth(&["info", out.to_str().unwrap()]));
+        assert_eq!(v["vertices"], 13296, "{ext}");
+        assert_eq!(v["faces"], 12920, "{ext}");
+        assert_eq!(v["quads"], 12687, "{ext}");
+        assert_eq!(v["triangles"], 233, "{ext}");
+    }
+}
+
+#[test]
+fn generic_writes_mesh_and_thirteen_feature_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("generic.obj");
+    let json = dir.path().join("generic.json");
+    json_of(&facesynth(&[
+        "generic",
+        "--out",
+        obj.to_str().unwrap(),
+        "--landmarks",
+        json.to_str().unwrap(),
+    ]));
+    let points: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(points.len(), 13);
+    let v = json_of(&facesynth(&["info", obj.to_str().unwrap()]));
+    let n = v["vertices"].as_u64().unwrap();
+    assert!((2500..=4000).contains(&n), "{n} vertices");
+}
+
+#[test]
+fn bad_input_gives_one_line_error_naming_the_file_and_exit_code_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: Vec<(std::path::PathBuf, &[u8])> = vec![
+        (dir.path().join("garbage.wrl"), &[0xff, 0x00, 0x13, 0x37, 0x80]),
+        (dir.path().join("empty.obj"), b""),
+        (dir.path().join("scan.unknown"), b"1 2 3\n"),
+        (
+            dir.path().join("bad_index.obj"),
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+        ),
+    ];
+    for (path, bytes) in &cases {
+        std::fs::write(path, bytes).unwrap();
+    }
+    let missing = dir.path().join("missing.wrl");
+    let paths: Vec<&std::path::Path> = cases
+        .iter()
+        .map(|(p, _)| p.as_path())
+        .chain([missing.as_path(), dir.path()])
+        .collect();
+    for path in paths {
+        let out = facesynth(&["info", path.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(1), "{}", path.display());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        let name = path.file_name().unwrap().to_str().unwrap();
+        assert!(stderr.contains(name), "{stderr} should name {name}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}

@@ -1,0 +1,121 @@
+//! The editor in a real window: Xvfb + Mesa's software Vulkan (lavapipe), one frame rendered
+//! after loading a real GavabDB scan, saved as PNG and checked for a drawn face.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Xvfb(Child);
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts Xvfb on a free display number.
+fn start_xvfb() -> (Xvfb, String) {
+    for display in 90..140 {
+        if Path::new(&format!("/tmp/.X11-unix/X{display}")).exists()
+            || Path::new(&format!("/tmp/.X{display}-lock")).exists()
+        {
+            continue;
+        }
+        let child = Command::new("Xvfb")
+            .args([&format!(":{display}"), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("Xvfb is needed for the window test: run scripts/setup.sh");
+        let socket = format!("/tmp/.X11-unix/X{display}");
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(10) {
+            if Path::new(&socket).exists() {
+                return (Xvfb(child), format!(":{display}"));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    panic!("could not start Xvfb");
+}
+
+/// One window at a time: the tests of this file share the display search.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn screenshot(args: &[&str], png: &Path) {
+    let _guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let (_xvfb, display) = start_xvfb();
+    let runtime = std::env::temp_dir().join("facesynth-xdg");
+    std::fs::create_dir_all(&runtime).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(args)
+        .arg("--screenshot")
+        .arg(png)
+        .env("DISPLAY", &display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("XDG_RUNTIME_DIR", &runtime)
+        .output()
+        .expect("run facesynth");
+    assert!(
+        out.status.success(),
+        "facesynth --screenshot failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Fraction of viewport pixels that differ clearly from the background, and how many distinct
+/// colours the viewport holds (shading gives hundreds; a blank or flat fill gives a few).
+fn viewport_stats(png: &Path) -> (f64, usize) {
+    let img = image::open(png).expect("a PNG").to_rgb8();
+    let (w, h) = img.dimensions();
+    assert!(w >= 640 && h >= 400, "screenshot is {w}×{h}");
+    // The side panel is on the left; sample the right two thirds.
+    let x0 = w / 3;
+    let bg = *img.get_pixel(w - 3, 3);
+    let mut differing = 0usize;
+    let mut total = 0usize;
+    let mut colours = std::collections::HashSet::new();
+    for y in (0..h).step_by(2) {
+        for x in (x0..w).step_by(2) {
+            let p = img.get_pixel(x, y);
+            total += 1;
+            let d: i32 = (0..3).map(|c| (p[c] as i32 - bg[c] as i32).abs()).sum();
+            if d > 40 {
+                differing += 1;
+            }
+            colours.insert(p.0);
+        }
+    }
+    (differing as f64 / total as f64, colours.len())
+}
+
+#[test]
+fn viewer_renders_a_real_scan_under_xvfb() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("cara1.png");
+    let scan = common::gavab("cara1_frontal1.wrl");
+    screenshot(&["view", scan.to_str().unwrap()], &png);
+    let (covered, colours) = viewport_stats(&png);
+    assert!(covered > 0.10, "only {:.1}% of the viewport is drawn", covered * 100.0);
+    assert!(colours > 100, "only {colours} colours: not a shaded surface");
+    // Keep a copy for people to look at (ignored by git).
+    let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/screenshots");
+    let _ = std::fs::create_dir_all(&keep);
+    let _ = std::fs::copy(&png, keep.join("cara1_frontal1.png"));
+}
+
+#[test]
+fn viewer_shows_the_generic_face_without_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("generic.png");
+    screenshot(&[], &png);
+    let (covered, colours) = viewport_stats(&png);
+    assert!(covered > 0.10, "only {:.1}% of the viewport is drawn", covered * 100.0);
+    assert!(colours > 100, "only {colours} colours");
+    let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/screenshots");
+    let _ = std::fs::create_dir_all(&keep);
+    let _ = std::fs::copy(&png, keep.join("generic.png"));
+}
