@@ -970,7 +970,7 @@ impl Evaluator<'_, '_, '_> {
             }
             if i == -1 || k + 1 == n {
                 if !face.is_empty() {
-                    push_face(&mut self.faces, &mut face, clockwise);
+                    super::push_clean_face(&mut self.faces, &mut face, clockwise);
                     face_no += 1;
                 }
                 face.clear();
@@ -979,27 +979,6 @@ impl Evaluator<'_, '_, '_> {
         self.scratch = face;
         Ok(())
     }
-}
-
-/// Merges consecutive repeated corners, drops faces left with < 3 distinct corners, and
-/// reverses clockwise faces.
-fn push_face(faces: &mut Polygons, face: &mut Vec<u32>, clockwise: bool) {
-    face.dedup();
-    while face.len() > 1 && face.first() == face.last() {
-        face.pop();
-    }
-    if face.len() < 3 {
-        return;
-    }
-    for (k, a) in face.iter().enumerate() {
-        if face.get(k + 1..).is_some_and(|rest| rest.contains(a)) {
-            return;
-        }
-    }
-    if clockwise {
-        face.reverse();
-    }
-    faces.push(face);
 }
 
 #[cfg(test)]
