@@ -89,7 +89,11 @@ pub fn parse(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Mesh> {
         total_points: 0,
     };
     let roots = parser.parse_top()?;
+    // Without USE a file cannot describe more points or corners than it has bytes; with USE a
+    // small file can describe exponentially many, so what it may expand to is bounded.
+    let budget = bytes.len().saturating_mul(4).max(1 << 20);
     let mut ev = Evaluator {
+        budget,
         nodes: &parser.nodes,
         path,
         limits,
@@ -764,6 +768,8 @@ struct State1 {
 }
 
 struct Evaluator<'n, 'a, 'p> {
+    /// Most points, and most face corners, the scene may expand to.
+    budget: usize,
     nodes: &'n [Node<'a>],
     path: &'p Path,
     limits: &'p ReadLimits,
@@ -916,14 +922,12 @@ impl Evaluator<'_, '_, '_> {
             Some(&(_, _, base)) => base,
             None => {
                 let base = self.positions.len();
-                if base + points_len > self.limits.max_vertices {
+                let limit = self.limits.max_vertices.min(self.budget);
+                if base + points_len > limit {
                     return Err(Error::syntax(
                         self.path,
                         line,
-                        format!(
-                            "more than {} vertices (the reader's vertex limit)",
-                            self.limits.max_vertices
-                        ),
+                        format!("the scene expands to more than {limit} vertices"),
                     ));
                 }
                 let nodes = self.nodes;
@@ -935,11 +939,12 @@ impl Evaluator<'_, '_, '_> {
                 base
             }
         };
-        if self.faces.indices.len() + ifs.coord_index.len() > 8 * self.limits.max_vertices {
+        let limit = self.limits.max_vertices.saturating_mul(8).min(self.budget);
+        if self.faces.indices.len() + ifs.coord_index.len() > limit {
             return Err(Error::syntax(
                 self.path,
                 line,
-                "more face corners than the reader's limit",
+                format!("the scene expands to more than {limit} face corners"),
             ));
         }
         let mut face = std::mem::take(&mut self.scratch);

@@ -46,7 +46,7 @@ use std::path::Path;
 pub const LONG_EDGE_FACTOR: f64 = 3.0;
 
 /// Fewer points per row on average than this means the file is not in row order.
-const MIN_POINTS_PER_ROW: f64 = 8.0;
+const MIN_POINTS_PER_ROW: f64 = 3.0;
 
 /// Below this fraction of points in triangles the file is taken not to be in row order.
 const MIN_USED_FRACTION: f64 = 0.5;
