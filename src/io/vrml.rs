@@ -29,8 +29,9 @@
 //! * Faces are returned counter-clockwise: `ccw FALSE` (2.0) and `vertexOrdering CLOCKWISE`
 //!   (1.0 `ShapeHints`) reverse them.
 //!
-//! Units and transforms: coordinates are taken to be millimetres, as GavabDB's are (cara1's
-//! face is ~140 mm wide, 1.2 m from the scanner). The rigid part of a transform is applied —
+//! Units and transforms: coordinates are taken to be millimetres, as GavabDB's are (the cara1
+//! scans, face with hair and neck, are 178–253 mm wide and lie about 1.25 m in front of the
+//! scanner, z ≈ −1250). The rigid part of a transform is applied —
 //! `translation`, `rotation` and `center` of `Transform` (both dialects) and the 1.0
 //! `Translation`/`Rotation` nodes — since it moves parts without changing units. Scaling is
 //! ignored: `scaleFactor`/`scale`/`scaleOrientation` and the 1.0 `Scale` and `MatrixTransform`
@@ -1041,6 +1042,30 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("t.wrl: line 3") && e.contains("point 7"), "{e}");
+    }
+
+    #[test]
+    fn deep_nesting_and_use_explosions_are_refused() {
+        let deep = format!("#VRML V1.0 ascii\n{}", "Separator { ".repeat(100_000));
+        let e = parse_str(&deep).unwrap_err().to_string();
+        assert!(e.contains("nested more than"), "{e}");
+        // Each level uses the previous one twice: 2^60 face sets if expanded.
+        let mut s = String::from(
+            "#VRML V2.0 utf8\nDEF L0 Shape { geometry IndexedFaceSet { coord Coordinate \
+             { point [0 0 0 1 0 0 0 1 0] } coordIndex [0 1 2] } }\n",
+        );
+        for k in 1..=60 {
+            s.push_str(&format!(
+                "DEF L{k} Group {{ children [USE L{} USE L{}] }}\n",
+                k - 1,
+                k - 1
+            ));
+        }
+        let e = parse_str(&s).unwrap_err().to_string();
+        assert!(
+            e.contains("expands to more than") || e.contains("too large"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -75,6 +75,7 @@ pub fn parse_points(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Ve
     if bytes.is_empty() {
         return Err(Error::invalid(path, "file is empty"));
     }
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut points = Vec::with_capacity(bytes.len() / 40);
     for (k, raw) in bytes.split(|&c| c == b'\n').enumerate() {
         let line_no = k + 1;
