@@ -6,6 +6,8 @@
 
 /// Headless command implementations behind `facesynth <command>` (main.rs only parses).
 pub mod cli;
+/// Mesh denoising (paper 2.1.1): median + Laplacian filter moving only the largest changes; baselines.
+pub mod denoise;
 /// Typed errors of the library (one-line messages that name the file and the problem).
 pub mod error;
 /// The 13 named feature points shared by the generic face, detection and registration.

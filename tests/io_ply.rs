@@ -1,4 +1,4 @@
-//! PLY writer/reader round trips, and reading a real scan written as PLY.
+//! PLY writer/reader round trips, and a real scan written and read back as PLY and OBJ.
 
 use facesynth::Mesh;
 use facesynth::io::{ReadLimits, ply, read_mesh, write_mesh};
@@ -53,6 +53,14 @@ fn write_mesh_and_read_mesh_round_trip_a_real_scan() {
     assert_eq!(back.positions_mm, mesh.positions_mm);
     assert_eq!(back.faces, mesh.faces);
     assert_eq!(back.face_counts().quads, 13_215);
+    // OBJ keeps vertex ids too (6 decimals: positions within 1e-6 mm).
+    let out = dir.path().join("cara1.obj");
+    write_mesh(&out, &mesh).unwrap();
+    let back = read_mesh(&out).unwrap();
+    assert_eq!(back.faces, mesh.faces);
+    for (a, b) in back.positions_mm.iter().zip(&mesh.positions_mm) {
+        assert!((*a - *b).length() < 1e-5);
+    }
 }
 
 #[test]

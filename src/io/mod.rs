@@ -22,7 +22,8 @@ pub enum MeshFormat {
     Vrml,
     /// Wavefront OBJ (`.obj`).
     Obj,
-    /// Stanford PLY (`.ply`), ascii or binary little-endian.
+    /// Stanford PLY (`.ply`): reads ascii and binary (either byte order), writes binary
+    /// little-endian.
     Ply,
     /// Point cloud, one `x y z` per line (`.xyz`, `.txt`); triangulated on reading. Read only.
     Xyz,

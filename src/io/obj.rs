@@ -1,61 +1,115 @@
-//! Wavefront OBJ through tobj, without forced triangulation (quads stay quads).
+//! Wavefront OBJ: `v` and `f` lines, polygons kept as they are (quads stay quads).
+//!
+//! A small line parser rather than tobj: tobj renumbers vertices in the order faces first use
+//! them and drops unused ones (so vertex ids, and any per-vertex data or landmark ids tied to
+//! them, would not survive a write/read round trip), and its index arithmetic can overflow on
+//! hostile input. Here vertices keep their file order; `f` corners may be `v`, `v/vt`, `v//vn`
+//! or `v/vt/vn` (only `v` is used; negative ids count back from the latest vertex); all
+//! objects and groups are merged; `vt`, `vn`, materials, `l`/`p` elements and every other
+//! statement are ignored (normals are recomputed from the faces).
 
-use crate::io::ReadLimits;
+use crate::io::{ReadLimits, push_clean_face};
 use crate::mesh::Polygons;
 use crate::{Error, Mesh, Result};
 use glam::DVec3;
 use std::io::Write;
 use std::path::Path;
 
-/// Parses OBJ text. All objects/groups are merged into one mesh; texture coordinates,
-/// normals and materials are ignored (normals are recomputed from the faces).
+/// Parses OBJ text into one mesh.
 pub fn parse(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Mesh> {
-    let opts = tobj::LoadOptions {
-        triangulate: false,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let mut reader = std::io::BufReader::new(bytes);
-    let (models, _) =
-        tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed))
-            .map_err(|e| Error::invalid(path, format!("not a readable OBJ file ({e})")))?;
-    let mut positions = Vec::new();
+    if bytes.is_empty() {
+        return Err(Error::invalid(path, "file is empty"));
+    }
+    let mut positions: Vec<DVec3> = Vec::new();
     let mut faces = Polygons::new();
-    for model in &models {
-        let m = &model.mesh;
-        let base = positions.len() as u32;
-        if positions.len() + m.positions.len() / 3 > limits.max_vertices {
-            return Err(Error::invalid(
-                path,
-                "more vertices than the reader's limit",
-            ));
-        }
-        positions.extend(
-            m.positions
-                .chunks_exact(3)
-                .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)),
-        );
-        let mut start = 0usize;
-        let arities: Vec<u32> = if m.face_arities.is_empty() {
-            vec![3; m.indices.len() / 3]
-        } else {
-            m.face_arities.clone()
-        };
-        for arity in arities {
-            let end = start + arity as usize;
-            let Some(poly) = m.indices.get(start..end) else {
-                return Err(Error::invalid(
-                    path,
-                    "face list is shorter than its arities",
-                ));
-            };
-            let poly: Vec<u32> = poly.iter().map(|&i| base + i).collect();
-            faces.push(&poly);
-            start = end;
+    let mut face = Vec::new();
+    for (k, raw) in bytes.split(|&c| c == b'\n').enumerate() {
+        let line_no = k + 1;
+        let err = |m: String| Error::syntax(path, line_no, m);
+        let mut words = raw
+            .split(|c| c.is_ascii_whitespace())
+            .filter(|w| !w.is_empty());
+        match words.next() {
+            Some(b"v") => {
+                let mut xyz = [0.0f64; 3];
+                for (axis, slot) in xyz.iter_mut().enumerate() {
+                    let w = words
+                        .next()
+                        .ok_or_else(|| err(format!("vertex has {axis} coordinates, need 3")))?;
+                    let v = std::str::from_utf8(w)
+                        .ok()
+                        .and_then(|t| t.parse::<f64>().ok())
+                        .ok_or_else(|| err(format!("'{}' is not a number", show(w))))?;
+                    if !v.is_finite() {
+                        return Err(err(format!(
+                            "vertex {} has a non-finite coordinate '{}'",
+                            positions.len() + 1,
+                            show(w)
+                        )));
+                    }
+                    *slot = v;
+                }
+                if positions.len() >= limits.max_vertices {
+                    return Err(err(format!(
+                        "more than {} vertices (the reader's limit)",
+                        limits.max_vertices
+                    )));
+                }
+                positions.push(DVec3::from_array(xyz));
+            }
+            Some(b"f") => {
+                face.clear();
+                let n = positions.len() as i64;
+                for w in words {
+                    let v = w.split(|&c| c == b'/').next().unwrap_or(&[]);
+                    let i = std::str::from_utf8(v)
+                        .ok()
+                        .and_then(|t| t.parse::<i64>().ok())
+                        .ok_or_else(|| {
+                            err(format!("'{}' is not a face corner (v/vt/vn)", show(w)))
+                        })?;
+                    // 1-based, or negative: relative to the vertices read so far.
+                    let id = if i < 0 { n + i } else { i - 1 };
+                    if !(0..n).contains(&id) {
+                        return Err(err(format!(
+                            "face refers to vertex {i}, but {n} vertices precede it"
+                        )));
+                    }
+                    face.push(id as u32);
+                }
+                if face.len() < 3 {
+                    return Err(err(format!(
+                        "face has {} corners (need 3 or more)",
+                        face.len()
+                    )));
+                }
+                push_clean_face(&mut faces, &mut face, false);
+            }
+            _ => {}
         }
     }
+    if positions.is_empty() {
+        return Err(Error::invalid(
+            path,
+            "the file has no vertices (no 'v' lines)",
+        ));
+    }
+    if faces.is_empty() {
+        return Err(Error::invalid(
+            path,
+            "the file has no faces (no usable 'f' lines)",
+        ));
+    }
     Ok(Mesh::new(positions, faces))
+}
+
+/// A word for an error message: lossy text, cut to 40 characters.
+fn show(w: &[u8]) -> String {
+    String::from_utf8_lossy(w)
+        .chars()
+        .take(40)
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect()
 }
 
 /// Writes OBJ text (`v` lines in mm with 6 decimals, 1-based `f` lines, polygons kept).
@@ -77,6 +131,17 @@ pub fn write(w: &mut dyn Write, mesh: &Mesh) -> std::io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn vertex_order_and_unused_vertices_are_kept() {
+        let text = b"# t\nv 0 0 0\nv 9 9 9\nv 1 0 0\nvt 0 0\nv 0 1 0\no a\ng b\n\
+                     f 4/1 1/1/1 3//1\nf -1 -4 -2\nl 1 2\n";
+        let m = parse(text, Path::new("t.obj"), &ReadLimits::default()).unwrap();
+        assert_eq!(m.vertex_count(), 4);
+        assert_eq!(m.positions_mm[1], DVec3::splat(9.0));
+        assert_eq!(m.faces.get(0), &[3, 0, 2]);
+        assert_eq!(m.faces.get(1), &[3, 0, 2]);
+    }
 
     #[test]
     fn quads_survive_a_round_trip() {

@@ -147,6 +147,7 @@ pub fn parse_with_scalar(
                     push_clean_face(&mut faces, &mut face, false);
                 }
             }
+            _ if el.props.is_empty() => {} // nothing stored, whatever the count
             _ => {
                 for i in 0..el.count {
                     for p in &el.props {

@@ -29,8 +29,9 @@
 //! * Faces are returned counter-clockwise: `ccw FALSE` (2.0) and `vertexOrdering CLOCKWISE`
 //!   (1.0 `ShapeHints`) reverse them.
 //!
-//! Units and transforms: coordinates are taken to be millimetres, as GavabDB's are (cara1's
-//! face is ~140 mm wide, 1.2 m from the scanner). The rigid part of a transform is applied —
+//! Units and transforms: coordinates are taken to be millimetres, as GavabDB's are (the cara1
+//! scans, face with hair and neck, are 178–253 mm wide and lie about 1.25 m in front of the
+//! scanner, z ≈ −1250). The rigid part of a transform is applied —
 //! `translation`, `rotation` and `center` of `Transform` (both dialects) and the 1.0
 //! `Translation`/`Rotation` nodes — since it moves parts without changing units. Scaling is
 //! ignored: `scaleFactor`/`scale`/`scaleOrientation` and the 1.0 `Scale` and `MatrixTransform`
@@ -89,7 +90,11 @@ pub fn parse(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Mesh> {
         total_points: 0,
     };
     let roots = parser.parse_top()?;
+    // Without USE a file cannot describe more points or corners than it has bytes; with USE a
+    // small file can describe exponentially many, so what it may expand to is bounded.
+    let budget = bytes.len().saturating_mul(4).max(1 << 20);
     let mut ev = Evaluator {
+        budget,
         nodes: &parser.nodes,
         path,
         limits,
@@ -764,6 +769,8 @@ struct State1 {
 }
 
 struct Evaluator<'n, 'a, 'p> {
+    /// Most points, and most face corners, the scene may expand to.
+    budget: usize,
     nodes: &'n [Node<'a>],
     path: &'p Path,
     limits: &'p ReadLimits,
@@ -916,14 +923,12 @@ impl Evaluator<'_, '_, '_> {
             Some(&(_, _, base)) => base,
             None => {
                 let base = self.positions.len();
-                if base + points_len > self.limits.max_vertices {
+                let limit = self.limits.max_vertices.min(self.budget);
+                if base + points_len > limit {
                     return Err(Error::syntax(
                         self.path,
                         line,
-                        format!(
-                            "more than {} vertices (the reader's vertex limit)",
-                            self.limits.max_vertices
-                        ),
+                        format!("the scene expands to more than {limit} vertices"),
                     ));
                 }
                 let nodes = self.nodes;
@@ -935,11 +940,12 @@ impl Evaluator<'_, '_, '_> {
                 base
             }
         };
-        if self.faces.indices.len() + ifs.coord_index.len() > 8 * self.limits.max_vertices {
+        let limit = self.limits.max_vertices.saturating_mul(8).min(self.budget);
+        if self.faces.indices.len() + ifs.coord_index.len() > limit {
             return Err(Error::syntax(
                 self.path,
                 line,
-                "more face corners than the reader's limit",
+                format!("the scene expands to more than {limit} face corners"),
             ));
         }
         let mut face = std::mem::take(&mut self.scratch);
@@ -1036,6 +1042,30 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("t.wrl: line 3") && e.contains("point 7"), "{e}");
+    }
+
+    #[test]
+    fn deep_nesting_and_use_explosions_are_refused() {
+        let deep = format!("#VRML V1.0 ascii\n{}", "Separator { ".repeat(100_000));
+        let e = parse_str(&deep).unwrap_err().to_string();
+        assert!(e.contains("nested more than"), "{e}");
+        // Each level uses the previous one twice: 2^60 face sets if expanded.
+        let mut s = String::from(
+            "#VRML V2.0 utf8\nDEF L0 Shape { geometry IndexedFaceSet { coord Coordinate \
+             { point [0 0 0 1 0 0 0 1 0] } coordIndex [0 1 2] } }\n",
+        );
+        for k in 1..=60 {
+            s.push_str(&format!(
+                "DEF L{k} Group {{ children [USE L{} USE L{}] }}\n",
+                k - 1,
+                k - 1
+            ));
+        }
+        let e = parse_str(&s).unwrap_err().to_string();
+        assert!(
+            e.contains("expands to more than") || e.contains("too large"),
+            "{e}"
+        );
     }
 
     #[test]

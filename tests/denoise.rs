@@ -1,0 +1,322 @@
+//! Denoising: behaviour on analytic meshes, and scores against the synthetic benchmark's
+//! clean twins.
+
+mod common;
+
+use facesynth::Mesh;
+use facesynth::denoise::{
+    BoundaryRule, DenoiseMethod, DenoiseParams, MoveRule, denoise, eval,
+};
+use glam::DVec3;
+use std::path::PathBuf;
+
+/// `nx × ny` vertex grid of quads, spacing 1 mm, z = f(x, y).
+fn grid(nx: u32, ny: u32, f: impl Fn(f64, f64) -> f64) -> Mesh {
+    let mut p = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let (x, y) = (i as f64, j as f64);
+            p.push(DVec3::new(x, y, f(x, y)));
+        }
+    }
+    let mut faces = Vec::new();
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let v = j * nx + i;
+            faces.push([v, v + 1, v + 1 + nx, v + nx]);
+        }
+    }
+    Mesh::from_faces(p, faces)
+}
+
+/// Deterministic pseudo-random numbers (xorshift), uniform in [0, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Standard normal (Box–Muller).
+    fn normal(&mut self) -> f64 {
+        let u = self.next().max(1e-300);
+        let v = self.next();
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+fn all_variants() -> Vec<(&'static str, DenoiseParams)> {
+    vec![
+        ("default", DenoiseParams::default()),
+        ("paper", DenoiseParams::paper()),
+        (
+            "laplacian",
+            DenoiseParams::baseline(DenoiseMethod::Laplacian, 5),
+        ),
+        ("taubin", DenoiseParams::baseline(DenoiseMethod::Taubin, 5)),
+    ]
+}
+
+#[test]
+fn plane_spike_is_removed_and_the_rest_is_untouched() {
+    let nx = 12;
+    let spike = 5 * nx + 6;
+    for (name, params) in [
+        ("default", DenoiseParams::default()),
+        ("paper", DenoiseParams::paper()),
+    ] {
+        let mut m = grid(nx, 10, |_, _| 0.0);
+        let input = {
+            m.positions_mm[spike as usize].z = 25.0;
+            m.positions_mm.clone()
+        };
+        let r = denoise(&mut m, &params).unwrap();
+        assert!(
+            m.positions_mm[spike as usize].z.abs() < 1e-12,
+            "{name}: spike left at {}",
+            m.positions_mm[spike as usize].z
+        );
+        for (v, (p, q)) in m.positions_mm.iter().zip(&input).enumerate() {
+            if v != spike as usize {
+                assert_eq!(p, q, "{name}: vertex {v} moved");
+            }
+        }
+        assert_eq!(r.vertices_moved, 1, "{name}");
+        assert_eq!(r.iterations_run, 1, "{name}");
+        assert!((r.max_displacement_mm - 25.0).abs() < 1e-12);
+        assert!((r.mean_displacement_mm - 25.0 / m.vertex_count() as f64).abs() < 1e-12);
+        assert_eq!(r.displacement_mm.len(), m.vertex_count());
+        assert_eq!(r.displacement_mm[spike as usize], 25.0);
+    }
+}
+
+/// A spherical cap (R = 60 mm) sampled on a 1 mm grid like a scan, with σ = 0.3 mm noise
+/// along the normal and a few spikes; returns (mesh, centre, R).
+fn noisy_cap(spikes: bool) -> (Mesh, DVec3, f64) {
+    let r = 60.0;
+    let n = 41;
+    let centre = DVec3::new(20.0, 20.0, 0.0);
+    let mut m = grid(n, n, |x, y| {
+        (r * r - (x - centre.x).powi(2) - (y - centre.y).powi(2)).sqrt()
+    });
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    for p in &mut m.positions_mm {
+        let dir = (*p - centre).normalize();
+        *p += dir * 0.3 * rng.normal();
+    }
+    if spikes {
+        for k in 0..12 {
+            let v = (97 * k + 45) % (n * n) as usize;
+            m.positions_mm[v].z += if k % 2 == 0 { 15.0 } else { -9.0 };
+        }
+    }
+    (m, centre, r)
+}
+
+fn sphere_rmse(m: &Mesh, centre: DVec3, r: f64) -> f64 {
+    let sse: f64 = m
+        .positions_mm
+        .iter()
+        .map(|p| (p.distance(centre) - r).powi(2))
+        .sum();
+    (sse / m.vertex_count() as f64).sqrt()
+}
+
+#[test]
+fn noisy_sphere_gets_closer_to_the_true_sphere() {
+    for spikes in [true, false] {
+        let (mesh, centre, r) = noisy_cap(spikes);
+        let before = sphere_rmse(&mesh, centre, r);
+        for (name, params) in all_variants() {
+            // Without spikes the default's 1 mm floor leaves σ = 0.3 mm noise alone by design.
+            if !spikes && name == "default" {
+                continue;
+            }
+            let mut m = mesh.clone();
+            denoise(&mut m, &params).unwrap();
+            let after = sphere_rmse(&m, centre, r);
+            assert!(
+                after < 0.8 * before,
+                "{name} spikes={spikes}: RMSE {before:.3} → {after:.3}"
+            );
+        }
+    }
+}
+
+#[test]
+fn default_leaves_plain_noise_alone_and_removes_spikes() {
+    let (mesh, centre, r) = noisy_cap(false);
+    let mut m = mesh.clone();
+    let report = denoise(&mut m, &DenoiseParams::default()).unwrap();
+    assert_eq!(report.vertices_moved, 0);
+    let (mesh, ..) = noisy_cap(true);
+    let mut m = mesh.clone();
+    denoise(&mut m, &DenoiseParams::default()).unwrap();
+    let worst = m
+        .positions_mm
+        .iter()
+        .map(|p| (p.distance(centre) - r).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1.5, "worst {worst}");
+}
+
+#[test]
+fn boundary_spike_is_filtered_along_the_rim_and_held_with_hold() {
+    // Spike on the bottom rim (vertex 4 of a 10 × 6 grid), on a tilted plane.
+    // Tilted across the rim only: along the bottom rim z is constant.
+    let tilt = |_x: f64, y: f64| 0.3 * y;
+    let mut m = grid(10, 6, tilt);
+    m.positions_mm[4].z += 12.0;
+    let input = m.positions_mm.clone();
+    let mut along = m.clone();
+    let r = denoise(&mut along, &DenoiseParams::default()).unwrap();
+    // Along the rim the 3-point median of a straight rim is exact: the spike is gone and
+    // the vertex did not move sideways or into the surface.
+    assert!((along.positions_mm[4] - DVec3::new(4.0, 0.0, tilt(4.0, 0.0))).length() < 1e-12);
+    assert_eq!(r.vertices_moved, 1);
+    // A straight rim of a clean grid is a fixed point: the corners do not move either.
+    for (v, (p, q)) in along.positions_mm.iter().zip(&input).enumerate() {
+        if v != 4 {
+            assert_eq!(p, q, "vertex {v} moved");
+        }
+    }
+    let mut held = m.clone();
+    let params = DenoiseParams {
+        boundary: BoundaryRule::Hold,
+        ..DenoiseParams::default()
+    };
+    let r = denoise(&mut held, &params).unwrap();
+    assert_eq!(held.positions_mm[4], input[4], "held rim vertex moved");
+    assert_eq!(r.vertices_moved, 0);
+}
+
+#[test]
+fn w_one_moves_only_the_largest_change_per_iteration() {
+    let nx = 16;
+    let mut m = grid(nx, 16, |_, _| 0.0);
+    let spikes = [(3 * nx + 3, 30.0), (8 * nx + 10, 20.0), (12 * nx + 5, 10.0)];
+    for (v, dz) in spikes {
+        m.positions_mm[v as usize].z = dz;
+    }
+    let params = DenoiseParams {
+        w: 1.0,
+        iterations: 1,
+        ..DenoiseParams::paper()
+    };
+    let mut one = m.clone();
+    let r = denoise(&mut one, &params).unwrap();
+    assert_eq!(r.vertices_moved, 1);
+    assert_eq!(one.positions_mm[(3 * nx + 3) as usize].z, 0.0);
+    assert_eq!(one.positions_mm[(8 * nx + 10) as usize].z, 20.0);
+    let params = DenoiseParams {
+        iterations: 3,
+        ..params
+    };
+    let r = denoise(&mut m, &params).unwrap();
+    assert_eq!((r.iterations_run, r.vertices_moved), (3, 3));
+    assert!(m.positions_mm.iter().all(|p| p.z == 0.0));
+}
+
+#[test]
+fn paper_rule_needs_an_iteration_per_spike_per_region_does_not() {
+    let nx = 30;
+    let mut m = grid(nx, 30, |_, _| 0.0);
+    for k in 0..20u32 {
+        let v = (k / 5 * 6 + 3) * nx + (k % 5) * 6 + 3;
+        m.positions_mm[v as usize].z = 10.0 + k as f64;
+    }
+    let mut paper = m.clone();
+    let r = denoise(&mut paper, &DenoiseParams::paper()).unwrap();
+    let left = paper.positions_mm.iter().filter(|p| p.z > 2.0).count();
+    assert!(left > 0, "paper rule removed all 20 spikes in 15 iterations");
+    assert_eq!(r.iterations_run, 15);
+    let mut region = m.clone();
+    let r = denoise(&mut region, &DenoiseParams::default()).unwrap();
+    assert!(region.positions_mm.iter().all(|p| p.z == 0.0));
+    assert_eq!((r.iterations_run, r.vertices_moved), (1, 20));
+}
+
+#[test]
+fn zero_iterations_is_identity() {
+    let (mesh, ..) = noisy_cap(true);
+    for (name, params) in all_variants() {
+        let mut m = mesh.clone();
+        let r = denoise(
+            &mut m,
+            &DenoiseParams {
+                iterations: 0,
+                ..params
+            },
+        )
+        .unwrap();
+        assert_eq!(m.positions_mm, mesh.positions_mm, "{name}");
+        assert_eq!((r.iterations_run, r.vertices_moved), (0, 0), "{name}");
+        assert_eq!(r.max_displacement_mm, 0.0);
+    }
+}
+
+#[test]
+fn bad_parameters_are_rejected() {
+    let mut m = grid(3, 3, |_, _| 0.0);
+    for params in [
+        DenoiseParams {
+            w: 0.0,
+            ..Default::default()
+        },
+        DenoiseParams {
+            w: 1.5,
+            ..Default::default()
+        },
+        DenoiseParams {
+            min_displacement_mm: -1.0,
+            ..Default::default()
+        },
+        DenoiseParams {
+            mu: -0.1,
+            ..DenoiseParams::baseline(DenoiseMethod::Taubin, 3)
+        },
+    ] {
+        assert!(denoise(&mut m, &params).is_err(), "{params:?}");
+    }
+    let _ = MoveRule::Global;
+}
+
+/// Noisy and clean benchmark folders: `FACESYNTH_DENOISE_NOISY` / `_CLEAN`, or a generated set.
+fn bench_dirs(subjects: usize, seed: u64) -> (PathBuf, PathBuf) {
+    match (
+        std::env::var_os("FACESYNTH_DENOISE_NOISY"),
+        std::env::var_os("FACESYNTH_DENOISE_CLEAN"),
+    ) {
+        (Some(n), Some(c)) => (n.into(), c.into()),
+        _ => (
+            common::synth_dataset(subjects, seed, false),
+            common::synth_dataset(subjects, seed, true),
+        ),
+    }
+}
+
+/// The full benchmark (≥ 20 scans): `cargo test --release --no-default-features --test
+/// denoise -- --ignored --nocapture benchmark`. Prints Markdown tables.
+#[test]
+#[ignore]
+fn benchmark_against_clean_twins() {
+    let (noisy, clean) = bench_dirs(5, 1);
+    let pairs = eval::load_pairs(&noisy, &clean, usize::MAX).unwrap();
+    let verts: usize = pairs.iter().map(|p| p.noisy.vertex_count()).sum();
+    println!(
+        "{} scans, mean {} vertices",
+        pairs.len(),
+        verts / pairs.len().max(1)
+    );
+    let b = eval::benchmark(&pairs, 60).unwrap();
+    println!("{}", eval::markdown_table(&b.table));
+    let sweeps: Vec<_> = b
+        .laplacian_sweep
+        .iter()
+        .chain(&b.taubin_sweep)
+        .filter(|s| s.k <= 10 || s.k % 5 == 0)
+        .cloned()
+        .collect();
+    println!("{}", eval::markdown_table(&sweeps));
+}
