@@ -10,6 +10,7 @@ pub mod ply;
 pub mod vrml;
 pub mod xyz;
 
+use crate::mesh::Polygons;
 use crate::{Error, Mesh, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -138,6 +139,30 @@ pub fn write_atomic(
 /// Writes a string atomically (JSON reports, RON presets, landmark files).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<()> {
     write_atomic(path, |w| w.write_all(text.as_bytes()))
+}
+
+/// Appends a face read from a file after merging consecutive repeated corners (cyclically);
+/// a face left with fewer than 3 corners, or with a corner repeated elsewhere, is dropped since
+/// it has no area. `reverse` turns a clockwise face counter-clockwise. Returns whether it was
+/// kept. Shared by the readers so they treat degenerate faces alike.
+pub(crate) fn push_clean_face(faces: &mut Polygons, face: &mut Vec<u32>, reverse: bool) -> bool {
+    face.dedup();
+    while face.len() > 1 && face.first() == face.last() {
+        face.pop();
+    }
+    if face.len() < 3 {
+        return false;
+    }
+    for (k, a) in face.iter().enumerate() {
+        if face.get(k + 1..).is_some_and(|rest| rest.contains(a)) {
+            return false;
+        }
+    }
+    if reverse {
+        face.reverse();
+    }
+    faces.push(face);
+    true
 }
 
 fn temp_path_for(path: &Path) -> PathBuf {
