@@ -268,7 +268,8 @@ pub fn register_points(
         .map(|(p, _)| generic.mesh.positions_mm[generic.feature_vertex(*p) as usize])
         .collect();
     let target_pts: Vec<DVec3> = scan_points.iter().map(|(_, x)| *x).collect();
-    let scan_from_generic = horn_absolute_orientation(&generic_pts, &target_pts, params.with_scale)?;
+    let scan_from_generic =
+        horn_absolute_orientation(&generic_pts, &target_pts, params.with_scale)?;
     let rigid_rms_mm = (generic_pts
         .iter()
         .zip(&target_pts)
@@ -494,11 +495,7 @@ pub fn horn_absolute_orientation(
     if from.len() != to.len() || from.len() < 3 {
         return Err(Error::algorithm(
             "horn",
-            format!(
-                "need ≥ 3 point pairs, got {} and {}",
-                from.len(),
-                to.len()
-            ),
+            format!("need ≥ 3 point pairs, got {} and {}", from.len(), to.len()),
         ));
     }
     let n = from.len() as f64;
@@ -557,7 +554,10 @@ pub fn horn_absolute_orientation(
         1.0
     };
     if !(scale > 0.0 && scale.is_finite()) {
-        return Err(Error::algorithm("horn", format!("degenerate scale {scale}")));
+        return Err(Error::algorithm(
+            "horn",
+            format!("degenerate scale {scale}"),
+        ));
     }
     Ok(Similarity {
         rotation,
@@ -647,8 +647,14 @@ impl PlanarWarp {
         self.triangles
             .iter()
             .filter(|t| {
-                let a = cross2(self.src[t[1]] - self.src[t[0]], self.src[t[2]] - self.src[t[0]]);
-                let b = cross2(self.dst[t[1]] - self.dst[t[0]], self.dst[t[2]] - self.dst[t[0]]);
+                let a = cross2(
+                    self.src[t[1]] - self.src[t[0]],
+                    self.src[t[2]] - self.src[t[0]],
+                );
+                let b = cross2(
+                    self.dst[t[1]] - self.dst[t[0]],
+                    self.dst[t[2]] - self.dst[t[0]],
+                );
                 a * b <= 0.0
             })
             .count()
@@ -1099,8 +1105,8 @@ impl SurfaceIndex {
                     for jy in lo[1]..=hi[1] {
                         for ix in lo[0]..=hi[0] {
                             let c = (kz * self.dims[1] + jy) * self.dims[0] + ix;
-                            for &t in &self.items
-                                [self.offsets[c] as usize..self.offsets[c + 1] as usize]
+                            for &t in
+                                &self.items[self.offsets[c] as usize..self.offsets[c + 1] as usize]
                             {
                                 let [a, b, cc] =
                                     self.triangles[t as usize].map(|v| self.positions[v as usize]);
@@ -1200,9 +1206,16 @@ pub fn truth_points(json_path: &Path, surface: &Mesh) -> Result<TruthPoints> {
     let ibug: Ibug =
         serde_json::from_str(&text).map_err(|e| Error::invalid(json_path, e.to_string()))?;
     if ibug.ibug68_xyz_mm.len() != 68 {
-        return Err(Error::invalid(json_path, "ibug68_xyz_mm must have 68 points"));
+        return Err(Error::invalid(
+            json_path,
+            "ibug68_xyz_mm must have 68 points",
+        ));
     }
-    let pts: Vec<DVec3> = ibug.ibug68_xyz_mm.iter().map(|p| DVec3::from_array(*p)).collect();
+    let pts: Vec<DVec3> = ibug
+        .ibug68_xyz_mm
+        .iter()
+        .map(|p| DVec3::from_array(*p))
+        .collect();
     let mut out = [DVec3::NAN; FeaturePoint::COUNT];
     let mut derived = [false; FeaturePoint::COUNT];
     for (p, x, _) in truth.feature_points() {
@@ -1220,7 +1233,11 @@ pub fn truth_points(json_path: &Path, surface: &Mesh) -> Result<TruthPoints> {
         for w in chain.windows(2) {
             let (a, b) = (h(w[0]), h(w[1]));
             if (a >= 0.0) != (b >= 0.0) || a == 0.0 {
-                let t = if (a - b).abs() < 1e-12 { 0.0 } else { a / (a - b) };
+                let t = if (a - b).abs() < 1e-12 {
+                    0.0
+                } else {
+                    a / (a - b)
+                };
                 return pts[w[0]].lerp(pts[w[1]], t);
             }
         }
@@ -1232,11 +1249,21 @@ pub fn truth_points(json_path: &Path, surface: &Mesh) -> Result<TruthPoints> {
     out[FeaturePoint::CheekLeft.index()] = snap(contour_at(&left));
     out[FeaturePoint::Forehead.index()] =
         snap((pts[21] + pts[22]) * 0.5 + up * FOREHEAD_ABOVE_BROWS_MM);
-    for p in [FeaturePoint::CheekLeft, FeaturePoint::CheekRight, FeaturePoint::Forehead] {
+    for p in [
+        FeaturePoint::CheekLeft,
+        FeaturePoint::CheekRight,
+        FeaturePoint::Forehead,
+    ] {
         derived[p.index()] = true;
     }
-    if let Some(p) = FeaturePoint::ALL.iter().find(|p| !out[p.index()].is_finite()) {
-        return Err(Error::invalid(json_path, format!("no ground truth for {p}")));
+    if let Some(p) = FeaturePoint::ALL
+        .iter()
+        .find(|p| !out[p.index()].is_finite())
+    {
+        return Err(Error::invalid(
+            json_path,
+            format!("no ground truth for {p}"),
+        ));
     }
     Ok(TruthPoints {
         landmarks: Landmarks(out),
@@ -1255,6 +1282,8 @@ pub struct ScanEvaluation {
     pub surface_distance_mm: DistanceStats,
     /// Registered vertices → the scan registered to (as in [`RegistrationResult`]).
     pub scan_distance_mm: DistanceStats,
+    /// As `surface_distance_mm`, over the matched (projected, not filled) vertices only.
+    pub matched_distance_mm: DistanceStats,
     pub unmatched_vertices: usize,
     pub folded_warp_triangles: usize,
     pub scale: f64,
@@ -1286,7 +1315,18 @@ pub fn evaluate(
             res.mesh.positions_mm[generic.feature_vertex(*p) as usize].distance(truth.get(*p))
         })
         .collect();
+    let mut is_unmatched = vec![false; d.len()];
+    for &v in &res.unmatched_vertices {
+        is_unmatched[v as usize] = true;
+    }
+    let matched: Vec<f64> = d
+        .iter()
+        .zip(&is_unmatched)
+        .filter(|(_, u)| !**u)
+        .map(|(x, _)| *x)
+        .collect();
     Ok(ScanEvaluation {
+        matched_distance_mm: DistanceStats::of(&matched),
         rigid_rms_mm: res.rigid_rms_mm,
         landmark_residual_mean_mm: resid.iter().sum::<f64>() / resid.len() as f64,
         landmark_residual_max_mm: resid.iter().copied().fold(0.0, f64::max),
@@ -1369,7 +1409,11 @@ mod tests {
                 let axis = rng.vec3().normalize();
                 let truth = Similarity {
                     rotation: DQuat::from_axis_angle(axis, 3.0 * rng.next()),
-                    scale: if with_scale { 1.0 + 0.3 * rng.next() } else { 1.0 },
+                    scale: if with_scale {
+                        1.0 + 0.3 * rng.next()
+                    } else {
+                        1.0
+                    },
                     translation_mm: rng.vec3() * 500.0,
                 };
                 let from = cloud(&mut rng, 4 + trial % 10);
@@ -1406,12 +1450,18 @@ mod tests {
                 let h = horn_absolute_orientation(&from, &to, with_scale).unwrap();
                 let (r, s, t) = kabsch(&from, &to, with_scale);
                 let hr = h.rotation_matrix();
-                assert!((hr - r).abs_diff_eq(DMat3::ZERO, 1e-9) || (hr - r).to_cols_array().iter().all(|x| x.abs() < 1e-9));
+                assert!(
+                    (hr - r).abs_diff_eq(DMat3::ZERO, 1e-9)
+                        || (hr - r).to_cols_array().iter().all(|x| x.abs() < 1e-9)
+                );
                 assert!((h.scale - s).abs() < 1e-9, "{} vs {s}", h.scale);
                 assert!(h.translation_mm.distance(t) < 1e-9);
                 // And no small perturbation does better.
                 let cost = |x: &Similarity| -> f64 {
-                    from.iter().zip(&to).map(|(a, b)| x.apply(*a).distance_squared(*b)).sum()
+                    from.iter()
+                        .zip(&to)
+                        .map(|(a, b)| x.apply(*a).distance_squared(*b))
+                        .sum()
                 };
                 let c0 = cost(&h);
                 for k in 0..3 {
@@ -1464,21 +1514,28 @@ mod tests {
         let mut rng = Rng(7);
         let mut src = face_layout();
         let n0 = src.len();
-        let warp =
-            PlanarWarp::with_anchor_ring(&src, &src, 1.6, 16).expect("warp over a symmetric layout");
+        let warp = PlanarWarp::with_anchor_ring(&src, &src, 1.6, 16)
+            .expect("warp over a symmetric layout");
         src = warp.sources().to_vec();
         let area: f64 = warp
             .triangles()
             .iter()
             .map(|t| cross2(src[t[1]] - src[t[0]], src[t[2]] - src[t[0]]) * 0.5)
             .sum();
-        assert!(warp.triangles().iter().all(|t| cross2(src[t[1]] - src[t[0]], src[t[2]] - src[t[0]]) > 0.0));
+        assert!(
+            warp.triangles()
+                .iter()
+                .all(|t| cross2(src[t[1]] - src[t[0]], src[t[2]] - src[t[0]]) > 0.0)
+        );
         // The hull is the anchor polygon (all features are inside it).
         let ring = &src[n0..];
         let hull: f64 = (0..ring.len())
             .map(|k| cross2(ring[k], ring[(k + 1) % ring.len()]) * 0.5)
             .sum();
-        assert!((area - hull).abs() < 1e-6 * hull, "area {area} vs hull {hull}");
+        assert!(
+            (area - hull).abs() < 1e-6 * hull,
+            "area {area} vs hull {hull}"
+        );
         // Random points: exactly one triangle contains each (interior points).
         for _ in 0..2000 {
             let p = DVec2::new(rng.next() * 80.0, rng.next() * 100.0);
@@ -1493,10 +1550,15 @@ mod tests {
             assert!(inside <= 1);
         }
         // A perfect grid (maximally cocircular) triangulates too.
-        let grid: Vec<DVec2> = (0..25).map(|k| DVec2::new((k % 5) as f64, (k / 5) as f64)).collect();
+        let grid: Vec<DVec2> = (0..25)
+            .map(|k| DVec2::new((k % 5) as f64, (k / 5) as f64))
+            .collect();
         let tris = delaunay(&grid);
         assert_eq!(tris.len(), 32);
-        let a: f64 = tris.iter().map(|t| cross2(grid[t[1]] - grid[t[0]], grid[t[2]] - grid[t[0]]) * 0.5).sum();
+        let a: f64 = tris
+            .iter()
+            .map(|t| cross2(grid[t[1]] - grid[t[0]], grid[t[2]] - grid[t[0]]) * 0.5)
+            .sum();
         assert!((a - 16.0).abs() < 1e-9);
     }
 
@@ -1583,7 +1645,11 @@ mod tests {
             let h = rng.next() * 60.0;
             let hit = proj.cast(theta, h).expect("ray hits the cap");
             let world = frame.to_world(hit.local);
-            assert!((world.length() - radius).abs() < 0.05, "off the sphere: {}", world.length());
+            assert!(
+                (world.length() - radius).abs() < 0.05,
+                "off the sphere: {}",
+                world.length()
+            );
             // On the ray: same height and direction.
             assert!((hit.local.y - h).abs() < 1e-9);
             assert!((hit.local.x.atan2(hit.local.z) - theta).abs() < 1e-9);
@@ -1597,7 +1663,11 @@ mod tests {
         for j in 0..=nv {
             for i in 0..=nu {
                 let a = -1.2 + 2.4 * i as f64 / nu as f64;
-                positions.push(DVec3::new(80.0 * a.sin(), -50.0 + 100.0 * j as f64 / nv as f64, 80.0 * a.cos()));
+                positions.push(DVec3::new(
+                    80.0 * a.sin(),
+                    -50.0 + 100.0 * j as f64 / nv as f64,
+                    80.0 * a.cos(),
+                ));
             }
         }
         let mut faces = Vec::new();
@@ -1609,7 +1679,10 @@ mod tests {
             }
         }
         let cyl = Mesh::from_faces(positions, faces);
-        let frame = CylinderFrame { origin_mm: DVec3::ZERO, rotation: DQuat::IDENTITY };
+        let frame = CylinderFrame {
+            origin_mm: DVec3::ZERO,
+            rotation: DQuat::IDENTITY,
+        };
         let proj = CylinderProjector::new(&cyl, frame, 80.0, &params).unwrap();
         for _ in 0..300 {
             let theta = rng.next();
