@@ -57,6 +57,21 @@ pub enum Command {
         #[arg(long)]
         paper: bool,
     },
+    /// Register the generic face to a scan (paper 2.1.3) and print the quality report as JSON.
+    Register {
+        /// Scan mesh (.wrl .vrml .obj .ply .xyz .txt).
+        scan: PathBuf,
+        /// The scan's 13 feature points as JSON (name → [x, y, z] mm). Required until automatic
+        /// detection is available.
+        #[arg(long)]
+        landmarks: Option<PathBuf>,
+        /// Write the registered generic face (.obj or .ply).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also write the report JSON to this file.
+        #[arg(long)]
+        report: Option<PathBuf>,
+    },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
 }
@@ -138,6 +153,17 @@ pub fn run(cli: Cli) -> Result<()> {
                 "millis": millis,
             }))
         }
+        Some(Command::Register {
+            scan,
+            landmarks,
+            out,
+            report,
+        }) => print_json(&register(
+            &scan,
+            landmarks.as_deref(),
+            out.as_deref(),
+            report.as_deref(),
+        )?),
         Some(Command::View(args)) => view(args),
         None => view(cli.view),
     }
@@ -158,6 +184,34 @@ pub fn info(file: &Path) -> Result<serde_json::Value> {
         "bbox_min_mm": round(lo),
         "bbox_max_mm": round(hi),
     }))
+}
+
+/// `facesynth register`: registers the built-in generic face to `scan`.
+pub fn register(
+    scan: &Path,
+    landmarks: Option<&Path>,
+    out: Option<&Path>,
+    report: Option<&Path>,
+) -> Result<serde_json::Value> {
+    let landmarks = landmarks.context(
+        "--landmarks FILE.json is required (automatic feature-point detection is not available yet)",
+    )?;
+    let text = std::fs::read_to_string(landmarks)
+        .with_context(|| format!("{}: cannot read", landmarks.display()))?;
+    let points: crate::Landmarks = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a landmark file", landmarks.display()))?;
+    let mesh = io::read_mesh(scan)?;
+    let generic = generic_face::build();
+    let params = crate::registration::RegistrationParams::default();
+    let result = crate::registration::register(&generic, &mesh, &points, &params)?;
+    if let Some(path) = out {
+        io::write_mesh(path, &result.mesh)?;
+    }
+    let value = result.report_json();
+    if let Some(path) = report {
+        io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+    }
+    Ok(value)
 }
 
 fn print_json(value: &serde_json::Value) -> Result<()> {

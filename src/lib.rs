@@ -20,6 +20,8 @@ pub mod ground_truth;
 pub mod io;
 /// The polygon mesh (positions in mm, faces as they come), topology and normals.
 pub mod mesh;
+/// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
+pub mod registration;
 
 /// The editor window: eframe app, panels, worker thread.
 #[cfg(feature = "gui")]

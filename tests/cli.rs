@@ -75,7 +75,10 @@ fn generic_writes_mesh_and_thirteen_feature_points() {
 fn bad_input_gives_one_line_error_naming_the_file_and_exit_code_1() {
     let dir = tempfile::tempdir().unwrap();
     let cases: Vec<(std::path::PathBuf, &[u8])> = vec![
-        (dir.path().join("garbage.wrl"), &[0xff, 0x00, 0x13, 0x37, 0x80]),
+        (
+            dir.path().join("garbage.wrl"),
+            &[0xff, 0x00, 0x13, 0x37, 0x80],
+        ),
         (dir.path().join("empty.obj"), b""),
         (dir.path().join("scan.unknown"), b"1 2 3\n"),
         (

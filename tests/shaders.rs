@@ -26,16 +26,34 @@ fn every_shader_validates() {
             count += 1;
         }
     }
-    assert!(count >= 2, "expected the viewport shaders in {}", dir.display());
+    assert!(
+        count >= 2,
+        "expected the viewport shaders in {}",
+        dir.display()
+    );
 }
 
 #[test]
 fn shader_entry_points_exist() {
     let source = include_str!("../shaders/mesh.wgsl");
     let module = naga::front::wgsl::parse_str(source).unwrap();
-    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
-    for wanted in ["vs_mesh", "fs_mesh", "vs_line", "fs_line", "vs_marker", "fs_marker"] {
-        assert!(names.contains(&wanted), "mesh.wgsl lacks {wanted}: {names:?}");
+    let names: Vec<&str> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    for wanted in [
+        "vs_mesh",
+        "fs_mesh",
+        "vs_line",
+        "fs_line",
+        "vs_marker",
+        "fs_marker",
+    ] {
+        assert!(
+            names.contains(&wanted),
+            "mesh.wgsl lacks {wanted}: {names:?}"
+        );
     }
 }
 

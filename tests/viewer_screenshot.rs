@@ -25,7 +25,14 @@ fn start_xvfb() -> (Xvfb, String) {
             continue;
         }
         let child = Command::new("Xvfb")
-            .args([&format!(":{display}"), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .args([
+                &format!(":{display}"),
+                "-screen",
+                "0",
+                "1280x800x24",
+                "-nolisten",
+                "tcp",
+            ])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -99,8 +106,15 @@ fn viewer_renders_a_real_scan_under_xvfb() {
     let scan = common::gavab("cara1_frontal1.wrl");
     screenshot(&["view", scan.to_str().unwrap()], &png);
     let (covered, colours) = viewport_stats(&png);
-    assert!(covered > 0.10, "only {:.1}% of the viewport is drawn", covered * 100.0);
-    assert!(colours > 100, "only {colours} colours: not a shaded surface");
+    assert!(
+        covered > 0.10,
+        "only {:.1}% of the viewport is drawn",
+        covered * 100.0
+    );
+    assert!(
+        colours > 100,
+        "only {colours} colours: not a shaded surface"
+    );
     // Keep a copy for people to look at (ignored by git).
     let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/screenshots");
     let _ = std::fs::create_dir_all(&keep);
@@ -113,7 +127,11 @@ fn viewer_shows_the_generic_face_without_arguments() {
     let png = dir.path().join("generic.png");
     screenshot(&[], &png);
     let (covered, colours) = viewport_stats(&png);
-    assert!(covered > 0.10, "only {:.1}% of the viewport is drawn", covered * 100.0);
+    assert!(
+        covered > 0.10,
+        "only {:.1}% of the viewport is drawn",
+        covered * 100.0
+    );
     assert!(colours > 100, "only {colours} colours");
     let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/screenshots");
     let _ = std::fs::create_dir_all(&keep);

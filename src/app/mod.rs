@@ -5,12 +5,12 @@
 mod viewport_ui;
 mod worker;
 
+use crate::Mesh;
 use crate::cli::ViewArgs;
 use crate::feature_points::{FeaturePoint, Landmarks};
 use crate::mesh::FaceCounts;
 use crate::render::{DrawStyle, MeshData, OrbitCamera, ViewportRenderer};
-use crate::Mesh;
-use anyhow::{anyhow, Result};
+use anyhow::{Result, anyhow};
 use eframe::egui;
 use glam::DVec3;
 use std::path::PathBuf;
@@ -102,7 +102,11 @@ pub struct EditorApp {
 }
 
 impl EditorApp {
-    fn new(cc: &eframe::CreationContext<'_>, args: ViewArgs, outcome: Arc<Mutex<Option<String>>>) -> Self {
+    fn new(
+        cc: &eframe::CreationContext<'_>,
+        args: ViewArgs,
+        outcome: Arc<Mutex<Option<String>>>,
+    ) -> Self {
         let worker = Worker::spawn(cc.egui_ctx.clone());
         let mut app = EditorApp {
             worker,
@@ -210,7 +214,9 @@ impl EditorApp {
     }
 
     fn handle_screenshot(&mut self, ctx: &egui::Context) {
-        let Some(plan) = &mut self.screenshot else { return };
+        let Some(plan) = &mut self.screenshot else {
+            return;
+        };
         if let Some(rx) = &plan.receiver
             && let Ok(image) = rx.try_recv()
         {
@@ -231,7 +237,9 @@ impl EditorApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
-        let Some(plan) = &mut self.screenshot else { return };
+        let Some(plan) = &mut self.screenshot else {
+            return;
+        };
         plan.frames_drawn += 1;
         // A couple of frames first, so layout and GPU uploads have settled.
         if plan.frames_drawn >= 3 && !plan.requested {
@@ -273,8 +281,16 @@ fn figures_ui(ui: &mut egui::Ui, scene: &Scene) {
             "size (mm)",
             format!("{:.1} × {:.1} × {:.1}", size.x, size.y, size.z),
         );
-        row(ui, "bbox min (mm)", format!("{:.1}, {:.1}, {:.1}", lo.x, lo.y, lo.z));
-        row(ui, "bbox max (mm)", format!("{:.1}, {:.1}, {:.1}", hi.x, hi.y, hi.z));
+        row(
+            ui,
+            "bbox min (mm)",
+            format!("{:.1}, {:.1}, {:.1}", lo.x, lo.y, lo.z),
+        );
+        row(
+            ui,
+            "bbox max (mm)",
+            format!("{:.1}, {:.1}, {:.1}", hi.x, hi.y, hi.z),
+        );
         row(ui, "loaded in", format!("{:.0} ms", scene.load_millis));
     });
 }

@@ -81,7 +81,12 @@ impl OrbitCamera {
     }
 
     /// Maps a world point to viewport pixels (origin top-left); `None` behind the camera.
-    pub fn project_to_pixels(&self, p_mm: DVec3, width_px: f64, height_px: f64) -> Option<[f64; 2]> {
+    pub fn project_to_pixels(
+        &self,
+        p_mm: DVec3,
+        width_px: f64,
+        height_px: f64,
+    ) -> Option<[f64; 2]> {
         let clip = (self.projection(width_px / height_px) * self.view()) * p_mm.extend(1.0);
         if clip.w <= 1e-9 {
             return None;
@@ -94,7 +99,13 @@ impl OrbitCamera {
     }
 
     /// Ray through a viewport pixel: (origin, unit direction), for picking.
-    pub fn ray_through_pixel(&self, x_px: f64, y_px: f64, width_px: f64, height_px: f64) -> (DVec3, DVec3) {
+    pub fn ray_through_pixel(
+        &self,
+        x_px: f64,
+        y_px: f64,
+        width_px: f64,
+        height_px: f64,
+    ) -> (DVec3, DVec3) {
         let ndc_x = x_px / width_px * 2.0 - 1.0;
         let ndc_y = 1.0 - y_px / height_px * 2.0;
         let tan = (self.fov_y_rad * 0.5).tan();
@@ -107,12 +118,14 @@ impl OrbitCamera {
     /// Drag to orbit: `dx`, `dy` in pixels.
     pub fn orbit(&mut self, dx: f64, dy: f64) {
         self.yaw_rad -= dx * 0.008;
-        self.pitch_rad = (self.pitch_rad + dy * 0.008).clamp(-89f64.to_radians(), 89f64.to_radians());
+        self.pitch_rad =
+            (self.pitch_rad + dy * 0.008).clamp(-89f64.to_radians(), 89f64.to_radians());
     }
 
     /// Drag to pan: moves the target in the view plane so the surface follows the pointer.
     pub fn pan(&mut self, dx: f64, dy: f64, viewport_height_px: f64) {
-        let mm_per_px = 2.0 * self.distance_mm * (self.fov_y_rad * 0.5).tan() / viewport_height_px.max(1.0);
+        let mm_per_px =
+            2.0 * self.distance_mm * (self.fov_y_rad * 0.5).tan() / viewport_height_px.max(1.0);
         let (right, up) = self.right_up();
         self.target_mm += (-right * dx + up * dy) * mm_per_px;
     }
@@ -129,12 +142,17 @@ mod tests {
 
     #[test]
     fn front_view_looks_down_minus_z_and_projects_target_to_centre() {
-        let cam = OrbitCamera::framing(DVec3::new(-70.0, -100.0, -1300.0), DVec3::new(70.0, 100.0, -1200.0));
+        let cam = OrbitCamera::framing(
+            DVec3::new(-70.0, -100.0, -1300.0),
+            DVec3::new(70.0, 100.0, -1200.0),
+        );
         assert!((cam.back() - DVec3::Z).length() < 1e-12);
         let c = cam.project_to_pixels(cam.target_mm, 800.0, 600.0).unwrap();
         assert!((c[0] - 400.0).abs() < 1e-6 && (c[1] - 300.0).abs() < 1e-6);
         // +x (subject's left) appears on the right of a front view, +y at the top.
-        let r = cam.project_to_pixels(cam.target_mm + DVec3::new(10.0, 10.0, 0.0), 800.0, 600.0).unwrap();
+        let r = cam
+            .project_to_pixels(cam.target_mm + DVec3::new(10.0, 10.0, 0.0), 800.0, 600.0)
+            .unwrap();
         assert!(r[0] > 400.0 && r[1] < 300.0);
     }
 
@@ -151,7 +169,10 @@ mod tests {
 
     #[test]
     fn whole_box_is_inside_the_view_after_framing() {
-        let (lo, hi) = (DVec3::new(-70.0, -110.0, -1290.0), DVec3::new(75.0, 120.0, -1190.0));
+        let (lo, hi) = (
+            DVec3::new(-70.0, -110.0, -1290.0),
+            DVec3::new(75.0, 120.0, -1190.0),
+        );
         let cam = OrbitCamera::framing(lo, hi);
         for i in 0..8 {
             let corner = DVec3::new(

@@ -448,7 +448,11 @@ impl ViewportRenderer {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 // wgpu rejects empty buffers: keep one dummy element.
-                contents: if contents.is_empty() { &[0u8; 64] } else { contents },
+                contents: if contents.is_empty() {
+                    &[0u8; 64]
+                } else {
+                    contents
+                },
                 usage,
             })
         };
@@ -519,7 +523,9 @@ impl CallbackTrait for ViewportCallback {
             r.upload(device, item);
             let mesh = &r.meshes[&item.id];
             let s = item.style;
-            let colour = s.colour.map_or([0.0, 0.0, 0.0, -1.0], |c| [c[0], c[1], c[2], 1.0]);
+            let colour = s
+                .colour
+                .map_or([0.0, 0.0, 0.0, -1.0], |c| [c[0], c[1], c[2], 1.0]);
             let flat = if s.flat { 1.0 } else { 0.0 };
             queue.write_buffer(
                 &mesh.surface_uniform,
@@ -543,7 +549,10 @@ impl CallbackTrait for ViewportCallback {
         r.frame_order.sort_by_key(|(_, s)| s.opacity < 1.0);
         if !self.markers.is_empty() {
             let needed = self.markers.len() as u32;
-            if r.marker_buffer.as_ref().is_none_or(|(_, cap)| *cap < needed) {
+            if r.marker_buffer
+                .as_ref()
+                .is_none_or(|(_, cap)| *cap < needed)
+            {
                 let buffer = device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("markers"),
                     size: (needed.max(64) as u64) * std::mem::size_of::<MarkerInstance>() as u64,

@@ -39,11 +39,18 @@ pub fn synth_dataset(subjects: usize, seed: u64, clean: bool) -> PathBuf {
     cmd.arg(shared_dir().join("bench/synth_gavab.py"))
         .arg("--out")
         .arg(&tmp)
-        .args(["--subjects", &subjects.to_string(), "--seed", &seed.to_string()]);
+        .args([
+            "--subjects",
+            &subjects.to_string(),
+            "--seed",
+            &seed.to_string(),
+        ]);
     if clean {
         cmd.arg("--clean");
     }
-    let out = cmd.output().expect("python3 must be installed to generate test data");
+    let out = cmd
+        .output()
+        .expect("python3 must be installed to generate test data");
     assert!(
         out.status.success(),
         "synth_gavab.py failed (is numpy installed?): {}",
