@@ -2,21 +2,23 @@
 //!
 //! The paper registers a generic face model (the face area of a head model: 2,777 vertices,
 //! 2,676 quads) to every scan and extrudes it into two layers of hexahedra for the FEM. Ours is
-//! generated from an analytic surface ([`shape`]) sampled by a structured grid ([`grid`]):
+//! generated from an analytic surface (`shape.rs`: an elliptic head section per height plus
+//! smooth feature bumps) sampled by a structured, feature-aligned grid (`grid.rs`):
 //!
-//! * all quads (no triangles), ~3,700 vertices, from the forehead to under the chin and round
-//!   the cheeks to the front of the ears (~140 mm wide);
+//! * all quads (3,600 quads, no triangles, 3,760 vertices), from the forehead to under the
+//!   chin and round the cheeks to the front of the ears (~140 mm wide);
 //! * frame: millimetres, looking towards +z, y up, x to the subject's left, **nose tip at the
 //!   origin**;
 //! * the mouth is a slit between the mouth corners (upper and lower lip are separate
 //!   boundaries, a 1.6 mm gap at the centre) and the eyes are almond-shaped holes whose ends are
 //!   the eye corners;
 //! * the 13 feature points are vertices, placed at the paper's Table 2 average distances
-//!   ([`targets`]);
+//!   ([`targets`](crate::generic_face::targets));
 //! * left/right mirror symmetric to rounding.
 //!
 //! Users can bring their own model instead: an OBJ plus a sidecar naming the 13 feature-point
-//! vertex ids ([`load`], [`GenericFace::write_sidecar`]).
+//! vertex ids ([`load`](crate::generic_face::load),
+//! [`write_sidecar`](crate::generic_face::GenericFace::write_sidecar)).
 
 mod grid;
 mod interp;

@@ -186,11 +186,13 @@ pub fn relief(x: f64, t: f64) -> f64 {
 
     // --- Mouth: dental arch, lips, the lips' roll-in at the slit, corners, folds, chin. ---
     h += 9.0 * bump(ell2(ax, t, 0.0, -29.0, 36.0, 27.0));
-    h += 2.4 * bump(ell2(ax, t, 0.0, -31.0, 21.0, 4.0));
+    h += 2.6 * bump(ell2(ax, t, 0.0, -31.2, 21.0, 3.6));
     h += 3.0 * bump(ell2(ax, t, 0.0, -38.5, 19.0, 5.0));
+    // Philtrum: a shallow groove from the columella down to the upper lip.
+    h -= 0.9 * bump(ell2(ax, t, 0.0, -22.0, 4.5, 8.0));
     h -= 2.0 * (-((t + 34.4) / 1.6).powi(2)).exp() * bump((ax / 26.0).powi(2));
     h -= 1.2 * bump(ell2(ax, t, 25.5, -34.4, 5.0, 5.0));
-    h -= 1.5 * bump(ell2(ax, t, 0.0, -49.0, 20.0, 5.5));
+    h -= 1.8 * bump(ell2(ax, t, 0.0, -48.0, 20.0, 5.0));
     h += 8.0 * bump(ell2(ax, t, 0.0, -63.0, 19.0, 12.0));
 
     // --- Forehead: frontal eminences. ---
