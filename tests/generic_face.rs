@@ -373,6 +373,14 @@ fn obj_and_sidecar_round_trip_through_load() {
     std::fs::write(&side, format!("{{\n  {}\n}}\n", body.join(",\n  "))).unwrap();
     let back = generic_face::load(&dir.path().join("face.obj"), &side).unwrap();
     assert_eq!(back.feature_vertices, f.feature_vertices);
+    // RON struct syntax too.
+    let body: Vec<String> = FeaturePoint::ALL
+        .iter()
+        .map(|p| format!("{}: {}", p.name(), f.feature_vertex(*p)))
+        .collect();
+    std::fs::write(&side, format!("(\n  {},\n)\n", body.join(",\n  "))).unwrap();
+    let back = generic_face::load(&dir.path().join("face.obj"), &side).unwrap();
+    assert_eq!(back.feature_vertices, f.feature_vertices);
 }
 
 #[test]

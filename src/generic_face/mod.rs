@@ -137,7 +137,8 @@ impl SidecarFormat {
 
 /// Loads a user's generic model: a mesh (OBJ, or any format [`crate::io::read_mesh`] reads)
 /// plus a JSON or RON sidecar (by extension) mapping each of the 13 feature-point names to a
-/// vertex id, e.g. `{"nose_tip": 1234, "inner_eye_left": 877, ...}`.
+/// 0-based vertex id (for OBJ: the order of the `v` lines), e.g.
+/// `{"nose_tip": 1234, "inner_eye_left": 877, ...}`; RON also takes `(nose_tip: 1234, ...)`.
 ///
 /// Errors name the file: unreadable mesh or sidecar, a missing or unknown name, an id out of
 /// range, two feature points on one vertex.
@@ -222,7 +223,11 @@ pub fn read_sidecar(path: &Path, vertex_count: usize) -> Result<[u32; FeaturePoi
         .map_err(|_| Error::invalid(path, "feature-point sidecar is not UTF-8 text"))?;
     let map: BTreeMap<String, i64> = match format {
         SidecarFormat::Json => serde_json::from_str(text).map_err(|e| e.to_string()),
-        SidecarFormat::Ron => ron::from_str(text).map_err(|e| e.to_string()),
+        // Through `ron::Value` so both map (`{"nose_tip": 12}`) and struct (`(nose_tip: 12)`)
+        // syntax read.
+        SidecarFormat::Ron => ron::from_str::<ron::Value>(text)
+            .map_err(|e| e.to_string())
+            .and_then(|v| v.into_rust().map_err(|e| e.to_string())),
     }
     .map_err(|e| {
         Error::invalid(

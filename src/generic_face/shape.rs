@@ -109,10 +109,10 @@ impl Section {
         let mut theta = s / self.a;
         for _ in 0..8 {
             let f = self.arc(theta) - s;
-            theta -= f / self.speed(theta);
-            if f.abs() < 1e-11 {
+            if f.abs() < 1e-10 {
                 break;
             }
+            theta -= f / self.speed(theta);
         }
         theta
     }
