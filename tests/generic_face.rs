@@ -262,9 +262,9 @@ fn quads_are_well_shaped() {
     println!("{q:?}");
     assert!(q.min_scaled_jacobian > 0.5, "{q:?}");
     assert!(q.mean_scaled_jacobian > 0.9, "{q:?}");
-    assert!(q.max_edge_ratio < 4.0, "{q:?}");
+    assert!(q.max_edge_ratio < 3.5, "{q:?}");
     assert!(q.min_edge_mm > 0.8 && q.max_edge_mm < 8.0, "{q:?}");
-    assert!(q.max_warp_deg < 60.0, "{q:?}");
+    assert!(q.max_warp_deg < 50.0, "{q:?}");
 }
 
 /// Projected onto a cylinder round a vertical axis behind the face (the paper's registration
@@ -289,6 +289,29 @@ fn the_surface_is_a_graph_over_a_cylinder_without_folds() {
             let cross = (b - a).perp_dot(d - a);
             assert!(cross > 0.0, "face {k} folds in the cylindrical projection");
         }
+    }
+}
+
+/// For the FEM's extrusion: offsetting the surface 15 mm towards that vertical axis keeps every
+/// quad of the inner layer convex and facing the same way (an offset along the vertex normals
+/// would fold where the surface is more curved than the offset, e.g. at the nose).
+#[test]
+fn a_radial_offset_towards_the_cylinder_axis_does_not_fold() {
+    let f = face();
+    let axis_z = -85.0;
+    let inner: Vec<DVec3> = f
+        .mesh
+        .positions_mm
+        .iter()
+        .map(|&p| p - 15.0 * DVec3::new(p.x, 0.0, p.z - axis_z).normalize())
+        .collect();
+    let layer = Mesh::new(inner, f.mesh.faces.clone());
+    let q = generic_face::quad_quality(&layer);
+    assert!(q.min_scaled_jacobian > 0.5, "{q:?}");
+    for (k, poly) in f.mesh.faces.iter().enumerate() {
+        let a = facesynth::mesh::face_normal(&f.mesh.positions_mm, poly);
+        let b = facesynth::mesh::face_normal(&layer.positions_mm, poly);
+        assert!(a.normalize().dot(b.normalize()) > 0.9, "face {k}");
     }
 }
 
@@ -348,6 +371,14 @@ fn obj_and_sidecar_round_trip_through_load() {
         .map(|p| format!("\"{}\": {}", p.name(), f.feature_vertex(*p)))
         .collect();
     std::fs::write(&side, format!("{{\n  {}\n}}\n", body.join(",\n  "))).unwrap();
+    let back = generic_face::load(&dir.path().join("face.obj"), &side).unwrap();
+    assert_eq!(back.feature_vertices, f.feature_vertices);
+    // RON struct syntax too.
+    let body: Vec<String> = FeaturePoint::ALL
+        .iter()
+        .map(|p| format!("{}: {}", p.name(), f.feature_vertex(*p)))
+        .collect();
+    std::fs::write(&side, format!("(\n  {},\n)\n", body.join(",\n  "))).unwrap();
     let back = generic_face::load(&dir.path().join("face.obj"), &side).unwrap();
     assert_eq!(back.feature_vertices, f.feature_vertices);
 }

@@ -59,8 +59,9 @@ fn side_arc(t: f64) -> f64 {
     Section::at(t).arc(pchip(&SIDE_ANGLE_DEG, t).to_radians())
 }
 
-fn point(sigma: f64, t_row: f64, t: f64) -> DVec3 {
-    shape::surface(sigma * side_arc(t_row), t)
+/// The unwarped grid point at column fraction `sigma` on the row at height `t`.
+fn point(sigma: f64, t: f64) -> DVec3 {
+    shape::surface(sigma * side_arc(t), t)
 }
 
 /// The column fraction `σ ∈ (0, 1)` whose vertex at height `t` has `x = x_mm` (bisection).
@@ -68,7 +69,7 @@ fn sigma_for_x(x_mm: f64, t: f64) -> f64 {
     let (mut lo, mut hi) = (0.0, 1.0);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if point(mid, t, t).x < x_mm {
+        if point(mid, t).x < x_mm {
             lo = mid;
         } else {
             hi = mid;
@@ -227,6 +228,7 @@ pub fn build() -> GenericFace {
         let even = (i as f64 - ic as f64) / half as f64;
         (1.0 - beta) * sigma[i] + beta * even
     };
+    let arcs: Vec<f64> = rows.t.iter().map(|&t| side_arc(t)).collect();
     let mut positions = Vec::with_capacity(ncol * nrow + 64);
     for (j, &t_row) in rows.t.iter().enumerate() {
         for (i, &sg) in sigma.iter().enumerate() {
@@ -239,7 +241,7 @@ pub fn build() -> GenericFace {
             } else {
                 warp(sg, t_row)
             };
-            positions.push(point(column, t_row, t_row + dt));
+            positions.push(shape::surface(column * arcs[j], t_row + dt));
         }
     }
     let id = |i: usize, j: usize| (j * ncol + i) as u32;
@@ -253,7 +255,7 @@ pub fn build() -> GenericFace {
             if let Some(gap) = open {
                 lower[j * ncol + i] = positions.len() as u32;
                 let t_row = rows.t[j];
-                positions.push(point(column(i, t_row), t_row, t_row - gap));
+                positions.push(shape::surface(column(i, t_row) * arcs[j], t_row - gap));
             }
         }
     }

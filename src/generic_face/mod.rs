@@ -2,21 +2,23 @@
 //!
 //! The paper registers a generic face model (the face area of a head model: 2,777 vertices,
 //! 2,676 quads) to every scan and extrudes it into two layers of hexahedra for the FEM. Ours is
-//! generated from an analytic surface ([`shape`]) sampled by a structured grid ([`grid`]):
+//! generated from an analytic surface (`shape.rs`: an elliptic head section per height plus
+//! smooth feature bumps) sampled by a structured, feature-aligned grid (`grid.rs`):
 //!
-//! * all quads (no triangles), ~3,700 vertices, from the forehead to under the chin and round
-//!   the cheeks to the front of the ears (~140 mm wide);
+//! * all quads (3,600 quads, no triangles, 3,760 vertices), from the forehead to under the
+//!   chin and round the cheeks to the front of the ears (~140 mm wide);
 //! * frame: millimetres, looking towards +z, y up, x to the subject's left, **nose tip at the
 //!   origin**;
 //! * the mouth is a slit between the mouth corners (upper and lower lip are separate
 //!   boundaries, a 1.6 mm gap at the centre) and the eyes are almond-shaped holes whose ends are
 //!   the eye corners;
 //! * the 13 feature points are vertices, placed at the paper's Table 2 average distances
-//!   ([`targets`]);
+//!   ([`targets`](crate::generic_face::targets));
 //! * left/right mirror symmetric to rounding.
 //!
 //! Users can bring their own model instead: an OBJ plus a sidecar naming the 13 feature-point
-//! vertex ids ([`load`], [`GenericFace::write_sidecar`]).
+//! vertex ids ([`load`](crate::generic_face::load),
+//! [`write_sidecar`](crate::generic_face::GenericFace::write_sidecar)).
 
 mod grid;
 mod interp;
@@ -135,7 +137,8 @@ impl SidecarFormat {
 
 /// Loads a user's generic model: a mesh (OBJ, or any format [`crate::io::read_mesh`] reads)
 /// plus a JSON or RON sidecar (by extension) mapping each of the 13 feature-point names to a
-/// vertex id, e.g. `{"nose_tip": 1234, "inner_eye_left": 877, ...}`.
+/// 0-based vertex id (for OBJ: the order of the `v` lines), e.g.
+/// `{"nose_tip": 1234, "inner_eye_left": 877, ...}`; RON also takes `(nose_tip: 1234, ...)`.
 ///
 /// Errors name the file: unreadable mesh or sidecar, a missing or unknown name, an id out of
 /// range, two feature points on one vertex.
@@ -220,7 +223,11 @@ pub fn read_sidecar(path: &Path, vertex_count: usize) -> Result<[u32; FeaturePoi
         .map_err(|_| Error::invalid(path, "feature-point sidecar is not UTF-8 text"))?;
     let map: BTreeMap<String, i64> = match format {
         SidecarFormat::Json => serde_json::from_str(text).map_err(|e| e.to_string()),
-        SidecarFormat::Ron => ron::from_str(text).map_err(|e| e.to_string()),
+        // Through `ron::Value` so both map (`{"nose_tip": 12}`) and struct (`(nose_tip: 12)`)
+        // syntax read.
+        SidecarFormat::Ron => ron::from_str::<ron::Value>(text)
+            .map_err(|e| e.to_string())
+            .and_then(|v| v.into_rust().map_err(|e| e.to_string())),
     }
     .map_err(|e| {
         Error::invalid(

@@ -109,10 +109,10 @@ impl Section {
         let mut theta = s / self.a;
         for _ in 0..8 {
             let f = self.arc(theta) - s;
-            theta -= f / self.speed(theta);
-            if f.abs() < 1e-11 {
+            if f.abs() < 1e-10 {
                 break;
             }
+            theta -= f / self.speed(theta);
         }
         theta
     }
@@ -177,7 +177,7 @@ pub fn relief(x: f64, t: f64) -> f64 {
     // --- Eyes: orbit hollow, eyeball/lids, brow ridge, glabella. ---
     h -= 7.5 * bump(ell2(ax, t, 32.0, 32.0, 21.0, 14.0));
     h += 5.0 * bump(ell2(ax, t, 33.0, 32.5, 14.5, 9.0));
-    h += 4.0 * bump(ell2(ax, t, 29.0, 44.0, 24.0, 8.5));
+    h += 3.8 * bump(ell2(ax, t, 29.0, 44.5, 25.0, 10.5));
     h += 3.0 * bump(ell2(ax, t, 0.0, 45.0, 15.0, 9.0));
 
     // --- Cheeks: cheekbones, hollow below them. ---
@@ -186,12 +186,14 @@ pub fn relief(x: f64, t: f64) -> f64 {
 
     // --- Mouth: dental arch, lips, the lips' roll-in at the slit, corners, folds, chin. ---
     h += 9.0 * bump(ell2(ax, t, 0.0, -29.0, 36.0, 27.0));
-    h += 2.4 * bump(ell2(ax, t, 0.0, -31.0, 21.0, 4.0));
+    h += 2.6 * bump(ell2(ax, t, 0.0, -31.2, 21.0, 3.6));
     h += 3.0 * bump(ell2(ax, t, 0.0, -38.5, 19.0, 5.0));
+    // Philtrum: a shallow groove from the columella down to the upper lip.
+    h -= 0.9 * bump(ell2(ax, t, 0.0, -22.0, 4.5, 8.0));
     h -= 2.0 * (-((t + 34.4) / 1.6).powi(2)).exp() * bump((ax / 26.0).powi(2));
     h -= 1.2 * bump(ell2(ax, t, 25.5, -34.4, 5.0, 5.0));
-    h -= 1.5 * bump(ell2(ax, t, 0.0, -49.0, 20.0, 5.5));
-    h += 8.0 * bump(ell2(ax, t, 0.0, -63.0, 19.0, 12.0));
+    h -= 1.8 * bump(ell2(ax, t, 0.0, -48.0, 20.0, 5.0));
+    h += 8.0 * bump(ell2(ax, t, 0.0, -63.0, 20.0, 14.5));
 
     // --- Forehead: frontal eminences. ---
     h += 1.5 * bump(ell2(ax, t, 22.0, 64.0, 18.0, 14.0));
