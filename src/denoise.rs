@@ -238,7 +238,13 @@ pub fn denoise_with_topology(
         )));
     }
     let nb = FilterNeighbours::new(mesh, topology, params.boundary);
-    Ok(run(&mut mesh.positions_mm, &nb, topology, params, |_, _| {}))
+    Ok(run(
+        &mut mesh.positions_mm,
+        &nb,
+        topology,
+        params,
+        |_, _| {},
+    ))
 }
 
 /// The neighbours each vertex is filtered with (CSR): the 1-ring for interior vertices, the
@@ -329,7 +335,11 @@ pub fn run(
     mut observe: impl FnMut(usize, &[DVec3]),
 ) -> DenoiseReport {
     let n = positions.len();
-    assert_eq!(nb.vertex_count(), n, "filter neighbours do not fit the mesh");
+    assert_eq!(
+        nb.vertex_count(),
+        n,
+        "filter neighbours do not fit the mesh"
+    );
     let input = positions.to_vec();
     let mut moved = vec![false; n];
     let mut iterations_run = 0;

@@ -4,9 +4,7 @@
 mod common;
 
 use facesynth::Mesh;
-use facesynth::denoise::{
-    BoundaryRule, DenoiseMethod, DenoiseParams, MoveRule, denoise, eval,
-};
+use facesynth::denoise::{BoundaryRule, DenoiseMethod, DenoiseParams, MoveRule, denoise, eval};
 use glam::DVec3;
 use std::path::PathBuf;
 
@@ -229,7 +227,10 @@ fn paper_rule_needs_an_iteration_per_spike_per_region_does_not() {
     let mut paper = m.clone();
     let r = denoise(&mut paper, &DenoiseParams::paper()).unwrap();
     let left = paper.positions_mm.iter().filter(|p| p.z > 2.0).count();
-    assert!(left > 0, "paper rule removed all 20 spikes in 15 iterations");
+    assert!(
+        left > 0,
+        "paper rule removed all 20 spikes in 15 iterations"
+    );
     assert_eq!(r.iterations_run, 15);
     let mut region = m.clone();
     let r = denoise(&mut region, &DenoiseParams::default()).unwrap();

@@ -1,3 +1,4 @@
+#![cfg(feature = "gui")]
 //! The editor in a real window: Xvfb + Mesa's software Vulkan (lavapipe), one frame rendered
 //! after loading a real GavabDB scan, saved as PNG and checked for a drawn face.
 

@@ -175,9 +175,8 @@ pub fn load_pair(noisy_dir: &Path, clean_dir: &Path, stem: &str) -> Result<ScanP
     }
     let mut cell_to_clean = vec![u32::MAX; g.ncols * g.nrows];
     for (v, p) in clean.positions_mm.iter().enumerate() {
-        let cell = grid_cell(g, *p).ok_or_else(|| {
-            Error::invalid(&clean_path, format!("vertex {v} is not on the grid"))
-        })?;
+        let cell = grid_cell(g, *p)
+            .ok_or_else(|| Error::invalid(&clean_path, format!("vertex {v} is not on the grid")))?;
         cell_to_clean[cell] = v as u32;
     }
     let mut to_clean = Vec::with_capacity(noisy.vertex_count());
@@ -236,7 +235,11 @@ pub fn input_score(pairs: &[ScanPair]) -> MethodScore {
 
 /// Runs [`denoise`] with `params` on every noisy scan and on its clean twin, timing the noisy
 /// run (one thread).
-pub fn score_method(pairs: &[ScanPair], label: &str, params: &DenoiseParams) -> Result<MethodScore> {
+pub fn score_method(
+    pairs: &[ScanPair],
+    label: &str,
+    params: &DenoiseParams,
+) -> Result<MethodScore> {
     let mut acc = Acc::default();
     for pair in pairs {
         let mut mesh = pair.noisy.clone();
