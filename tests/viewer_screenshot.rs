@@ -25,24 +25,26 @@ fn start_xvfb() -> (Xvfb, String) {
         {
             continue;
         }
-        let child = Command::new("Xvfb")
-            .args([
-                &format!(":{display}"),
-                "-screen",
-                "0",
-                "1280x800x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("Xvfb is needed for the window test: run scripts/setup.sh");
+        let xvfb = Xvfb(
+            Command::new("Xvfb")
+                .args([
+                    &format!(":{display}"),
+                    "-screen",
+                    "0",
+                    "1280x800x24",
+                    "-nolisten",
+                    "tcp",
+                ])
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("Xvfb is needed for the window test: run scripts/setup.sh"),
+        );
         let socket = format!("/tmp/.X11-unix/X{display}");
         let start = Instant::now();
         while start.elapsed() < Duration::from_secs(10) {
             if Path::new(&socket).exists() {
-                return (Xvfb(child), format!(":{display}"));
+                return (xvfb, format!(":{display}"));
             }
             std::thread::sleep(Duration::from_millis(50));
         }

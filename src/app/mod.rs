@@ -348,5 +348,3 @@ impl eframe::App for EditorApp {
         self.handle_screenshot(&ctx);
     }
 }
-
-use std::io::Write as _;
