@@ -90,6 +90,30 @@ pub struct ViewArgs {
     /// Window height in logical pixels.
     #[arg(long, default_value_t = 800)]
     pub height: u32,
+    /// The scan's feature points (JSON: name → [x, y, z] mm), loaded after the scan.
+    #[arg(long, value_name = "JSON")]
+    pub landmarks: Option<PathBuf>,
+    /// Run the denoising filter (default parameters) after loading.
+    #[arg(long)]
+    pub denoise: bool,
+    /// Register the generic face to the scan (needs the scan's landmarks).
+    #[arg(long)]
+    pub register: bool,
+    /// What the viewport colours by (default: chosen from what was computed).
+    #[arg(long, value_enum)]
+    pub show: Option<Overlay>,
+}
+
+/// Per-vertex colouring of the viewport.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Overlay {
+    /// Plain shading.
+    #[default]
+    Plain,
+    /// How far the denoising filter moved each scan vertex (mm), removed spikes marked.
+    Denoise,
+    /// Registered generic face over the scan, coloured by its distance to the scan (mm).
+    Registration,
 }
 
 /// Runs a parsed command line.

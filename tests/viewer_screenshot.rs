@@ -140,3 +140,30 @@ fn viewer_shows_the_generic_face_without_arguments() {
     let _ = std::fs::create_dir_all(&keep);
     let _ = std::fs::copy(&png, keep.join("generic.png"));
 }
+
+#[test]
+fn viewer_shows_the_denoise_heat_map_with_spike_markers() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("denoise.png");
+    let scan = common::gavab("cara1_frontal1.wrl");
+    screenshot(
+        &[
+            "view",
+            scan.to_str().unwrap(),
+            "--denoise",
+            "--show",
+            "denoise",
+        ],
+        &png,
+    );
+    let img = image::open(&png).unwrap().to_rgb8();
+    // Spike markers are magenta (the real scan has long peaks at the eyebrows and ears).
+    let magenta = img
+        .pixels()
+        .filter(|p| p[0] > 180 && p[1] < 110 && p[2] > 180)
+        .count();
+    assert!(magenta > 50, "{magenta} spike-marker pixels");
+    let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/screenshots");
+    let _ = std::fs::create_dir_all(&keep);
+    let _ = std::fs::copy(&png, keep.join("cara1_denoise.png"));
+}

@@ -1,21 +1,25 @@
-//! The editor window (eframe + the wgpu viewport). Panels send commands, a worker thread does
-//! the slow work (loading, and later denoising, registration, FEM), results come back over a
-//! channel and are applied once per frame; the UI thread never blocks.
+//! The editor window (eframe + the wgpu viewport). Panels emit [`Command`]s; the app applies
+//! them once per frame to the [`Document`]; slow work (loading, denoising, registration) runs
+//! on the worker thread and comes back over a channel; the UI thread never blocks.
 
+pub mod document;
+mod panels;
+pub mod undo;
 mod viewport_ui;
-mod worker;
+pub mod worker;
 
-use crate::Mesh;
-use crate::cli::ViewArgs;
-use crate::feature_points::{FeaturePoint, Landmarks};
-use crate::mesh::FaceCounts;
-use crate::render::{DrawStyle, MeshData, OrbitCamera, ViewportRenderer};
+use crate::cli::{Overlay, ViewArgs};
+use crate::feature_points::FeaturePoint;
+use crate::generic_face;
+use crate::render::{OrbitCamera, ViewportRenderer};
 use anyhow::{Result, anyhow};
+use document::{Command, Document};
 use eframe::egui;
 use glam::DVec3;
+use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
-use worker::{Job, JobResult, Worker};
+use worker::Worker;
 
 /// Opens the editor window and runs it until it is closed (or, with `--screenshot`, until the
 /// screenshot is written). An error in screenshot mode (file unreadable, no GPU) is returned.
@@ -25,6 +29,8 @@ pub fn run(args: ViewArgs) -> Result<()> {
             .with_title("facesynth")
             .with_inner_size([args.width as f32, args.height as f32]),
         renderer: eframe::Renderer::Wgpu,
+        // A scripted screenshot must neither read nor overwrite the user's saved settings.
+        persist_window: args.screenshot.is_none(),
         ..Default::default()
     };
     let outcome: Arc<Mutex<Option<String>>> = Arc::default();
@@ -49,26 +55,25 @@ pub fn run(args: ViewArgs) -> Result<()> {
     }
 }
 
-/// What the viewport shows: one loaded mesh with its figures.
-pub struct Scene {
-    /// Display name (file name, or "generic face").
-    pub name: String,
-    pub path: Option<PathBuf>,
-    pub mesh: Arc<Mesh>,
-    pub gpu: Arc<MeshData>,
-    pub counts: FaceCounts,
-    pub bbox_mm: (DVec3, DVec3),
-    pub landmarks: Option<Landmarks>,
-    pub load_millis: f64,
-}
-
-/// View options (what is drawn, how).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// View options (what is drawn, how); persisted between sessions.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct ViewOptions {
     pub wireframe: bool,
     pub flat_shading: bool,
     pub show_landmarks: bool,
     pub show_labels: bool,
+    #[serde(skip)]
+    pub overlay: Overlay,
+    /// Draw the original scan instead of the denoised one (before/after toggle).
+    #[serde(skip)]
+    pub show_original: bool,
+    /// Draw the scan under the registered generic face.
+    pub show_scan: bool,
+    /// Opacity of the scan when the registered face is drawn over it.
+    pub scan_opacity: f32,
+    /// Mark the vertices the denoising filter moved by more than 2 mm.
+    pub show_spikes: bool,
 }
 
 impl Default for ViewOptions {
@@ -78,9 +83,24 @@ impl Default for ViewOptions {
             flat_shading: false,
             show_landmarks: true,
             show_labels: true,
+            overlay: Overlay::Plain,
+            show_original: false,
+            show_scan: true,
+            scan_opacity: 0.45,
+            show_spikes: true,
         }
     }
 }
+
+/// Settings kept in eframe's storage.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+struct Settings {
+    recent_files: Vec<PathBuf>,
+    view: ViewOptions,
+}
+
+const SETTINGS_KEY: &str = "facesynth-settings";
 
 struct ScreenshotPlan {
     path: PathBuf,
@@ -91,12 +111,20 @@ struct ScreenshotPlan {
 
 pub struct EditorApp {
     worker: Worker,
-    scene: Option<Scene>,
-    scene_version: u64,
-    loading: Option<String>,
-    error: Option<String>,
+    doc: Document,
     camera: OrbitCamera,
+    /// Bounding box the camera was last framed on (re-framed when a new scan arrives).
+    framed_on: Option<(DVec3, DVec3)>,
     view: ViewOptions,
+    settings: Settings,
+    /// Commands from the panels, applied once per frame.
+    commands: Vec<Command>,
+    /// Scripted commands (from the command line), each sent when the worker is idle.
+    script: VecDeque<Command>,
+    /// The feature point the next click on the surface places.
+    picking: Option<FeaturePoint>,
+    denoise_params: crate::denoise::DenoiseParams,
+    scene: Option<viewport_ui::SceneCache>,
     screenshot: Option<ScreenshotPlan>,
     outcome: Arc<Mutex<Option<String>>>,
 }
@@ -107,15 +135,30 @@ impl EditorApp {
         args: ViewArgs,
         outcome: Arc<Mutex<Option<String>>>,
     ) -> Self {
-        let worker = Worker::spawn(cc.egui_ctx.clone());
+        let settings: Settings = match (&args.screenshot, cc.storage) {
+            (None, Some(storage)) => eframe::get_value(storage, SETTINGS_KEY).unwrap_or_default(),
+            _ => Settings::default(),
+        };
+        let mut view = settings.view;
+        view.overlay = args.show.unwrap_or(if args.register {
+            Overlay::Registration
+        } else if args.denoise {
+            Overlay::Denoise
+        } else {
+            Overlay::Plain
+        });
         let mut app = EditorApp {
-            worker,
-            scene: None,
-            scene_version: 0,
-            loading: None,
-            error: None,
+            worker: Worker::spawn(cc.egui_ctx.clone()),
+            doc: Document::new(generic_face::build()),
             camera: OrbitCamera::default(),
-            view: ViewOptions::default(),
+            framed_on: None,
+            view,
+            settings,
+            commands: Vec::new(),
+            script: script_from_args(&args),
+            picking: None,
+            denoise_params: Default::default(),
+            scene: None,
             screenshot: args.screenshot.map(|path| ScreenshotPlan {
                 path,
                 frames_drawn: 0,
@@ -124,93 +167,66 @@ impl EditorApp {
             }),
             outcome,
         };
-        app.open(args.file);
+        if args.file.is_none() {
+            let (lo, hi) = app.doc.generic.mesh.bbox_mm().unwrap_or_default();
+            app.camera = OrbitCamera::framing(lo, hi);
+            app.framed_on = Some((lo, hi));
+        }
         app
     }
 
-    /// Loads a scan (or the generic face when `path` is `None`) on the worker.
-    fn open(&mut self, path: Option<PathBuf>) {
-        self.loading = Some(
-            path.as_ref()
-                .map_or("generic face".into(), |p| p.display().to_string()),
-        );
-        self.worker.send(Job::Load(path));
-    }
-
-    fn poll_worker(&mut self) {
+    /// Applies queued commands and worker results (once per frame, before drawing).
+    fn update_document(&mut self) {
         while let Some(result) = self.worker.try_recv() {
-            match result {
-                JobResult::Loaded(Ok(scene)) => {
-                    self.camera = OrbitCamera::framing(scene.bbox_mm.0, scene.bbox_mm.1);
-                    self.scene_version += 1;
-                    self.scene = Some(*scene);
-                    self.loading = None;
-                    self.error = None;
-                }
-                JobResult::Loaded(Err(message)) => {
-                    self.loading = None;
-                    self.error = Some(message);
-                }
+            self.doc.receive(result);
+        }
+        if let Some(scan) = &self.doc.scan
+            && self.framed_on != Some(scan.bbox_mm)
+        {
+            self.camera = OrbitCamera::framing(scan.bbox_mm.0, scan.bbox_mm.1);
+            self.framed_on = Some(scan.bbox_mm);
+        }
+        // A scripted step waits until the previous one has finished; a failure stops the script.
+        if !self.doc.busy()
+            && self.doc.error.is_none()
+            && let Some(next) = self.script.pop_front()
+        {
+            self.commands.push(next);
+        }
+        for command in std::mem::take(&mut self.commands) {
+            if let Command::Open(Some(path)) = &command {
+                self.remember(path.clone());
+            }
+            for job in self.doc.apply(command) {
+                self.worker.send(job);
             }
         }
     }
 
-    fn side_panel_ui(&mut self, ui: &mut egui::Ui) {
-        ui.heading("facesynth");
-        ui.horizontal(|ui| {
-            if ui.button("Open scan…").clicked()
-                && let Some(path) = rfd::FileDialog::new()
-                    .add_filter("meshes", &["wrl", "vrml", "obj", "ply", "xyz", "txt"])
-                    .pick_file()
-            {
-                self.open(Some(path));
-            }
-            if ui.button("Generic face").clicked() {
-                self.open(None);
-            }
+    fn remember(&mut self, path: PathBuf) {
+        let recent = &mut self.settings.recent_files;
+        recent.retain(|p| *p != path);
+        recent.insert(0, path);
+        recent.truncate(10);
+    }
+
+    fn shortcuts(&mut self, ctx: &egui::Context) {
+        let (undo, redo) = ctx.input_mut(|i| {
+            let redo = i.consume_key(
+                egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+                egui::Key::Z,
+            );
+            let undo = i.consume_key(egui::Modifiers::COMMAND, egui::Key::Z);
+            (undo, redo)
         });
-        if let Some(what) = &self.loading {
-            ui.horizontal(|ui| {
-                ui.spinner();
-                ui.label(format!("loading {what}…"));
-            });
+        if redo {
+            self.commands.push(Command::Redo);
+        } else if undo {
+            self.commands.push(Command::Undo);
         }
-        if let Some(error) = &self.error {
-            ui.colored_label(egui::Color32::from_rgb(220, 80, 60), error);
+        if ctx.input(|i| i.key_pressed(egui::Key::Escape)) {
+            self.picking = None;
         }
-        ui.separator();
-        if let Some(scene) = &self.scene {
-            figures_ui(ui, scene);
-        }
-        ui.separator();
-        ui.label(egui::RichText::new("View").strong());
-        ui.checkbox(&mut self.view.wireframe, "Wireframe");
-        ui.checkbox(&mut self.view.flat_shading, "Flat shading");
-        ui.checkbox(&mut self.view.show_landmarks, "Feature points");
-        ui.add_enabled(
-            self.view.show_landmarks,
-            egui::Checkbox::new(&mut self.view.show_labels, "Labels"),
-        );
-        ui.horizontal(|ui| {
-            if ui.button("Front").clicked() {
-                self.camera.yaw_rad = 0.0;
-                self.camera.pitch_rad = 0.0;
-            }
-            if ui.button("Left side").clicked() {
-                self.camera.yaw_rad = std::f64::consts::FRAC_PI_2;
-                self.camera.pitch_rad = 0.0;
-            }
-            if ui.button("Right side").clicked() {
-                self.camera.yaw_rad = -std::f64::consts::FRAC_PI_2;
-                self.camera.pitch_rad = 0.0;
-            }
-            if ui.button("Reset").clicked()
-                && let Some(scene) = &self.scene
-            {
-                self.camera = OrbitCamera::framing(scene.bbox_mm.0, scene.bbox_mm.1);
-            }
-        });
-        ui.small("Drag: orbit · right/middle drag: pan · scroll: zoom · double-click: reset");
     }
 
     fn handle_screenshot(&mut self, ctx: &egui::Context) {
@@ -227,14 +243,14 @@ impl EditorApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
-        if self.loading.is_some() {
-            ctx.request_repaint();
-            return;
-        }
-        if let Some(error) = &self.error {
+        if let Some(error) = &self.doc.error {
             let message = error.clone();
             self.set_outcome(message);
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
+        if self.doc.busy() || !self.script.is_empty() || !self.commands.is_empty() {
+            ctx.request_repaint();
             return;
         }
         let Some(plan) = &mut self.screenshot else {
@@ -262,37 +278,22 @@ impl EditorApp {
     }
 }
 
-fn figures_ui(ui: &mut egui::Ui, scene: &Scene) {
-    ui.label(egui::RichText::new(&scene.name).strong());
-    egui::Grid::new("figures").num_columns(2).show(ui, |ui| {
-        let row = |ui: &mut egui::Ui, k: &str, v: String| {
-            ui.label(k);
-            ui.label(v);
-            ui.end_row();
-        };
-        row(ui, "vertices", scene.mesh.vertex_count().to_string());
-        row(ui, "faces", scene.counts.faces.to_string());
-        row(ui, "quads", scene.counts.quads.to_string());
-        row(ui, "triangles", scene.counts.triangles.to_string());
-        let (lo, hi) = scene.bbox_mm;
-        let size = hi - lo;
-        row(
-            ui,
-            "size (mm)",
-            format!("{:.1} × {:.1} × {:.1}", size.x, size.y, size.z),
-        );
-        row(
-            ui,
-            "bbox min (mm)",
-            format!("{:.1}, {:.1}, {:.1}", lo.x, lo.y, lo.z),
-        );
-        row(
-            ui,
-            "bbox max (mm)",
-            format!("{:.1}, {:.1}, {:.1}", hi.x, hi.y, hi.z),
-        );
-        row(ui, "loaded in", format!("{:.0} ms", scene.load_millis));
-    });
+/// The command-line steps of `facesynth view`, in pipeline order.
+fn script_from_args(args: &ViewArgs) -> VecDeque<Command> {
+    let mut script = VecDeque::new();
+    if let Some(file) = &args.file {
+        script.push_back(Command::Open(Some(file.clone())));
+    }
+    if args.denoise {
+        script.push_back(Command::Denoise(Default::default()));
+    }
+    if let Some(l) = &args.landmarks {
+        script.push_back(Command::LoadLandmarks(l.clone()));
+    }
+    if args.register {
+        script.push_back(Command::Register);
+    }
+    script
 }
 
 fn save_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<()> {
@@ -322,29 +323,23 @@ pub fn feature_colour(p: FeaturePoint) -> [f32; 4] {
 
 impl eframe::App for EditorApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
-        self.poll_worker();
+        let ctx = ui.ctx().clone();
+        self.shortcuts(&ctx);
+        self.update_document();
         egui::Panel::left("side")
             .resizable(true)
-            .default_size(280.0)
+            .default_size(330.0)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.side_panel_ui(ui));
+                egui::ScrollArea::vertical().show(ui, |ui| panels::side_panel_ui(self, ui));
             });
-        egui::CentralPanel::no_frame().show(ui, |ui| {
-            let style = DrawStyle {
-                flat: self.view.flat_shading,
-                wireframe: self.view.wireframe,
-                ..DrawStyle::default()
-            };
-            viewport_ui::viewport_ui(
-                ui,
-                &mut self.camera,
-                self.scene.as_ref(),
-                self.scene_version,
-                style,
-                &self.view,
-            );
-        });
-        let ctx = ui.ctx().clone();
+        egui::CentralPanel::no_frame().show(ui, |ui| viewport_ui::viewport_ui(self, ui));
         self.handle_screenshot(&ctx);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        if self.screenshot.is_none() {
+            self.settings.view = self.view;
+            eframe::set_value(storage, SETTINGS_KEY, &self.settings);
+        }
     }
 }

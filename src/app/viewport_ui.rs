@@ -1,22 +1,224 @@
-//! The central 3D viewport: camera interaction and the paint callback.
+//! The central 3D viewport: which meshes and overlays are drawn, camera interaction, picking,
+//! labels and the colour legend. GPU meshes are rebuilt only when the document or the
+//! colouring changes, not per frame.
 
-use super::{Scene, ViewOptions, feature_colour};
-use crate::render::{DrawStyle, MarkerInstance, OrbitCamera, SceneItem, ViewportCallback};
+use super::{EditorApp, feature_colour};
+use crate::Mesh;
+use crate::cli::Overlay;
+use crate::mesh::pick::ray_hit;
+use crate::render::colormap::ColourScale;
+use crate::render::{
+    DrawStyle, MarkerInstance, MeshData, OrbitCamera, SceneItem, ViewportCallback,
+};
 use eframe::{egui, egui_wgpu};
+use std::sync::Arc;
 
 /// Background of the viewport (linear RGB): a dark blue-grey that skin tones read well on.
 const BACKGROUND: [f32; 4] = [0.045, 0.05, 0.065, 1.0];
+const SPIKE_COLOUR: [f32; 4] = [0.95, 0.2, 0.9, 1.0];
 
-pub fn viewport_ui(
-    ui: &mut egui::Ui,
-    camera: &mut OrbitCamera,
-    scene: Option<&Scene>,
-    scene_version: u64,
-    style: DrawStyle,
-    view: &ViewOptions,
-) {
+/// Meshes of the current scene, built for the GPU once per (document version, colouring).
+pub struct SceneCache {
+    key: (u64, Overlay, bool),
+    /// (id, data, role) — the role decides the draw style each frame.
+    meshes: Vec<(u64, Arc<MeshData>, Role)>,
+    legend: Option<ColourScale>,
+    /// The mesh clicks are picked on (the surface shown), for placing landmarks.
+    pick_surface: Option<Arc<Mesh>>,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Role {
+    /// The main surface (scan, or generic face alone).
+    Main,
+    /// The scan drawn under the registered face.
+    Underlay,
+    /// The registered generic face.
+    Registered,
+}
+
+fn denoise_scale(displacement_mm: &[f64]) -> ColourScale {
+    ColourScale::magnitude(displacement_mm, 0.1, "denoise move (mm)")
+}
+
+fn registration_scale(distance_mm: &[f64]) -> ColourScale {
+    // Fixed 0–3 mm: figures are comparable between scans; grey = unmatched (filled).
+    ColourScale {
+        ramp: crate::render::colormap::Ramp::Sequential,
+        min: 0.0,
+        max: 3.0,
+        title: if distance_mm.iter().any(|d| d.is_nan()) {
+            "distance to scan (mm; grey: filled)".into()
+        } else {
+            "distance to scan (mm)".into()
+        },
+    }
+}
+
+fn build_scene(app: &EditorApp) -> SceneCache {
+    let doc = &app.doc;
+    let view = &app.view;
+    let key = (doc.version, view.overlay, view.show_original);
+    let mut meshes = Vec::new();
+    let mut legend = None;
+    let pick_surface;
+    match &doc.scan {
+        None => {
+            meshes.push((
+                3,
+                Arc::new(MeshData::from_mesh(&doc.generic.mesh, None)),
+                Role::Main,
+            ));
+            pick_surface = Some(Arc::new(doc.generic.mesh.clone()));
+        }
+        Some(scan) => {
+            let shown = match (&doc.denoised, view.show_original) {
+                (Some(d), false) => d.mesh.clone(),
+                _ => scan.mesh.clone(),
+            };
+            let registered = doc
+                .registration
+                .as_ref()
+                .filter(|_| view.overlay == Overlay::Registration);
+            let mut colours = None;
+            if view.overlay == Overlay::Denoise
+                && let Some(d) = &doc.denoised
+            {
+                let scale = denoise_scale(&d.report.displacement_mm);
+                colours = Some(scale.colours(&d.report.displacement_mm));
+                legend = Some(scale);
+            }
+            let role = if registered.is_some() {
+                Role::Underlay
+            } else {
+                Role::Main
+            };
+            meshes.push((
+                1,
+                Arc::new(MeshData::from_mesh(&shown, colours.as_deref())),
+                role,
+            ));
+            pick_surface = Some(shown);
+            if let Some(r) = registered {
+                let scale = registration_scale(&r.distance_mm);
+                let colours = scale.colours(&r.distance_mm);
+                meshes.push((
+                    2,
+                    Arc::new(MeshData::from_mesh(&r.result.mesh, Some(&colours))),
+                    Role::Registered,
+                ));
+                legend = Some(scale);
+            }
+        }
+    }
+    SceneCache {
+        key,
+        meshes,
+        legend,
+        pick_surface,
+    }
+}
+
+pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
+    let key = (app.doc.version, app.view.overlay, app.view.show_original);
+    if app.scene.as_ref().is_none_or(|s| s.key != key) {
+        app.scene = Some(build_scene(app));
+    }
     let rect = ui.available_rect_before_wrap();
     let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+    interact(app, ui, &response, rect);
+
+    let Some(scene) = &app.scene else { return };
+    let view = &app.view;
+    let base = DrawStyle {
+        flat: view.flat_shading,
+        wireframe: view.wireframe,
+        ..DrawStyle::default()
+    };
+    let items = scene
+        .meshes
+        .iter()
+        .filter(|(_, _, role)| *role != Role::Underlay || view.show_scan)
+        .map(|(id, data, role)| SceneItem {
+            id: *id,
+            version: app.doc.version * 8 + view.overlay as u64 * 2 + view.show_original as u64,
+            data: data.clone(),
+            style: match role {
+                Role::Underlay => DrawStyle {
+                    colour: Some([0.55, 0.62, 0.8]),
+                    opacity: view.scan_opacity,
+                    wireframe: false,
+                    ..base
+                },
+                _ => base,
+            },
+        })
+        .collect();
+
+    let mut markers = Vec::new();
+    if view.show_landmarks
+        && let Some(landmarks) = &app.doc.edits.landmarks
+    {
+        for (p, x) in landmarks.iter() {
+            markers.push(MarkerInstance {
+                centre: x.as_vec3().to_array(),
+                colour: feature_colour(p),
+            });
+        }
+    }
+    if view.overlay == Overlay::Denoise
+        && view.show_spikes
+        && let (Some(d), Some(scan)) = (&app.doc.denoised, &app.doc.scan)
+    {
+        // Where the spikes were (the original positions), so they can be seen and checked.
+        for &v in &d.spikes {
+            markers.push(MarkerInstance {
+                centre: scan.mesh.positions_mm[v as usize].as_vec3().to_array(),
+                colour: SPIKE_COLOUR,
+            });
+        }
+    }
+    let aspect = (rect.width() / rect.height().max(1.0)) as f64;
+    let callback = ViewportCallback {
+        view_proj: app.camera.view_proj(aspect),
+        eye_mm: app.camera.eye_mm().as_vec3(),
+        size_points: [rect.width(), rect.height()],
+        background: BACKGROUND,
+        items,
+        markers,
+        marker_radius_px: 5.0,
+    };
+    ui.painter()
+        .add(egui_wgpu::Callback::new_paint_callback(rect, callback));
+
+    let painter = ui.painter_at(rect);
+    if view.show_landmarks
+        && view.show_labels
+        && let Some(landmarks) = &app.doc.edits.landmarks
+    {
+        for (p, x) in landmarks.iter() {
+            if let Some([px, py]) =
+                app.camera
+                    .project_to_pixels(x, rect.width() as f64, rect.height() as f64)
+            {
+                let pos = rect.min + egui::vec2(px as f32 + 8.0, py as f32 - 8.0);
+                painter.text(
+                    pos,
+                    egui::Align2::LEFT_BOTTOM,
+                    p.name(),
+                    egui::FontId::proportional(11.0),
+                    egui::Color32::from_rgb(235, 235, 220),
+                );
+            }
+        }
+    }
+    if let Some(scale) = &scene.legend {
+        legend_ui(&painter, rect, scale);
+    }
+}
+
+fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+    let camera = &mut app.camera;
     let delta = response.drag_delta();
     if response.dragged_by(egui::PointerButton::Primary) {
         camera.orbit(delta.x as f64, delta.y as f64);
@@ -32,63 +234,73 @@ pub fn viewport_ui(
         }
     }
     if response.double_clicked()
-        && let Some(scene) = scene
+        && let Some((lo, hi)) = app.framed_on
     {
-        *camera = OrbitCamera::framing(scene.bbox_mm.0, scene.bbox_mm.1);
+        *camera = OrbitCamera::framing(lo, hi);
     }
-
-    let aspect = (rect.width() / rect.height().max(1.0)) as f64;
-    let mut items = Vec::new();
-    let mut markers = Vec::new();
-    if let Some(scene) = scene {
-        items.push(SceneItem {
-            id: 1,
-            version: scene_version,
-            data: scene.gpu.clone(),
-            style,
-        });
-        if view.show_landmarks
-            && let Some(landmarks) = &scene.landmarks
-        {
-            for (p, x) in landmarks.iter() {
-                markers.push(MarkerInstance {
-                    centre: x.as_vec3().to_array(),
-                    colour: feature_colour(p),
-                });
-            }
+    // Placing a landmark: a click (not a drag) on the surface shown.
+    if response.clicked()
+        && let Some(point) = app.picking
+        && let Some(pos) = response.interact_pointer_pos()
+        && let Some(surface) = app.scene.as_ref().and_then(|s| s.pick_surface.clone())
+    {
+        let local = pos - rect.min;
+        let (origin, dir) = app.camera.ray_through_pixel(
+            local.x as f64,
+            local.y as f64,
+            rect.width() as f64,
+            rect.height() as f64,
+        );
+        if let Some(hit) = ray_hit(&surface, origin, dir) {
+            app.commands
+                .push(super::document::Command::MoveLandmark(point, hit.point_mm));
+            app.picking = None;
         }
     }
-    let callback = ViewportCallback {
-        view_proj: camera.view_proj(aspect),
-        eye_mm: camera.eye_mm().as_vec3(),
-        size_points: [rect.width(), rect.height()],
-        background: BACKGROUND,
-        items,
-        markers,
-        marker_radius_px: 5.0,
-    };
-    ui.painter()
-        .add(egui_wgpu::Callback::new_paint_callback(rect, callback));
+}
 
-    if let Some(scene) = scene
-        && view.show_landmarks
-        && view.show_labels
-        && let Some(landmarks) = &scene.landmarks
-    {
-        let painter = ui.painter_at(rect);
-        for (p, x) in landmarks.iter() {
-            if let Some([px, py]) =
-                camera.project_to_pixels(x, rect.width() as f64, rect.height() as f64)
-            {
-                let pos = rect.min + egui::vec2(px as f32 + 8.0, py as f32 - 8.0);
-                painter.text(
-                    pos,
-                    egui::Align2::LEFT_BOTTOM,
-                    p.name(),
-                    egui::FontId::proportional(11.0),
-                    egui::Color32::from_rgb(235, 235, 220),
-                );
-            }
-        }
+/// A vertical colour bar with ticks at the viewport's right edge.
+fn legend_ui(painter: &egui::Painter, rect: egui::Rect, scale: &ColourScale) {
+    let bar = egui::Rect::from_min_size(
+        egui::pos2(rect.max.x - 70.0, rect.min.y + 40.0),
+        egui::vec2(16.0, 200.0),
+    );
+    let steps = 40;
+    for i in 0..steps {
+        let t0 = i as f32 / steps as f32;
+        let t1 = (i + 1) as f32 / steps as f32;
+        let v = scale.min + (scale.max - scale.min) * (1.0 - (t0 + t1) as f64 * 0.5);
+        let [r, g, b, _] = scale.colour(v);
+        let c = egui::Rgba::from_rgb(r, g, b);
+        painter.rect_filled(
+            egui::Rect::from_min_max(
+                egui::pos2(bar.min.x, bar.min.y + t0 * bar.height()),
+                egui::pos2(bar.max.x, bar.min.y + t1 * bar.height()),
+            ),
+            0.0,
+            c,
+        );
     }
+    let text = egui::Color32::from_rgb(230, 230, 230);
+    for (v, label) in scale.ticks(5) {
+        let t = if scale.max > scale.min {
+            ((scale.max - v) / (scale.max - scale.min)) as f32
+        } else {
+            0.0
+        };
+        painter.text(
+            egui::pos2(bar.max.x + 4.0, bar.min.y + t * bar.height()),
+            egui::Align2::LEFT_CENTER,
+            label,
+            egui::FontId::monospace(11.0),
+            text,
+        );
+    }
+    painter.text(
+        egui::pos2(bar.max.x + 10.0, bar.min.y - 8.0),
+        egui::Align2::RIGHT_BOTTOM,
+        &scale.title,
+        egui::FontId::proportional(12.0),
+        text,
+    );
 }

@@ -5,6 +5,8 @@
 //! 14k-face scan is two allocations, not 14k.
 
 mod normals;
+/// Ray picking (the editor's click-on-surface).
+pub mod pick;
 mod topology;
 
 pub use normals::{face_normal, vertex_normals};

@@ -5,6 +5,7 @@
 //! GPU-free parts ([`camera`], [`mesh_data`]) are tested without a window.
 
 pub mod camera;
+pub mod colormap;
 pub mod mesh_data;
 mod viewport;
 

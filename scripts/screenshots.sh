@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Regenerates the editor screenshots reviewers look at into screenshots/ (ignored by git):
+# every scripted panel state of `facesynth view`, under Xvfb + lavapipe when no display is set.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=screenshots
+mkdir -p "$out"
+cargo build --quiet
+bin=target/debug/facesynth
+scan=../shared/data/gavabdb/cara1_frontal1.wrl
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/facesynth-xdg}"
+mkdir -p "$XDG_RUNTIME_DIR" && chmod 700 "$XDG_RUNTIME_DIR"
+run() {
+  local name=$1; shift
+  if [ -n "${DISPLAY:-}" ]; then "$bin" view "$@" --screenshot "$out/$name.png"
+  else xvfb-run -a -s "-screen 0 1400x900x24" "$bin" view "$@" --screenshot "$out/$name.png"; fi
+  echo "screenshots: $out/$name.png"
+}
+run generic
+run cara1_plain "$scan"
+run cara1_denoise "$scan" --denoise --show denoise

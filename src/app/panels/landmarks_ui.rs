@@ -1,0 +1,88 @@
+//! Landmarks panel: the 13 feature points (subject's left/right), click-to-place on the
+//! surface, load/save JSON, undo/redo.
+
+use super::super::document::Command;
+use super::super::{EditorApp, feature_colour};
+use crate::feature_points::FeaturePoint;
+use eframe::egui;
+
+pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.small("left/right = the subject's own (left is +x, the image's right in a front view)");
+    ui.horizontal(|ui| {
+        if ui.button("Load JSON…").clicked()
+            && let Some(path) = rfd::FileDialog::new()
+                .add_filter("landmarks", &["json"])
+                .pick_file()
+        {
+            app.commands.push(Command::LoadLandmarks(path));
+        }
+        if ui
+            .add_enabled(
+                app.doc.edits.landmarks.is_some(),
+                egui::Button::new("Save JSON…"),
+            )
+            .clicked()
+            && let Some(path) = rfd::FileDialog::new()
+                .add_filter("landmarks", &["json"])
+                .set_file_name("landmarks.json")
+                .save_file()
+        {
+            app.commands.push(Command::SaveLandmarks(path));
+        }
+    });
+    ui.horizontal(|ui| {
+        if ui
+            .add_enabled(app.doc.history.can_undo(), egui::Button::new("Undo"))
+            .on_hover_text("Ctrl+Z")
+            .clicked()
+        {
+            app.commands.push(Command::Undo);
+        }
+        if ui
+            .add_enabled(app.doc.history.can_redo(), egui::Button::new("Redo"))
+            .on_hover_text("Ctrl+Shift+Z")
+            .clicked()
+        {
+            app.commands.push(Command::Redo);
+        }
+    });
+    if let Some(p) = app.picking {
+        ui.colored_label(
+            egui::Color32::from_rgb(250, 210, 80),
+            format!("click the surface to place {} (Esc cancels)", p.name()),
+        );
+    }
+    let landmarks = app.doc.edits.landmarks;
+    egui::Grid::new("landmarks")
+        .num_columns(3)
+        .striped(true)
+        .show(ui, |ui| {
+            for p in FeaturePoint::ALL {
+                let [r, g, b, _] = feature_colour(p);
+                let colour = egui::Color32::from_rgb(
+                    (r * 255.0) as u8,
+                    (g * 255.0) as u8,
+                    (b * 255.0) as u8,
+                );
+                ui.colored_label(colour, p.name());
+                match &landmarks {
+                    Some(l) => {
+                        let x = l.get(p);
+                        ui.monospace(format!("{:7.1} {:7.1} {:7.1}", x.x, x.y, x.z));
+                    }
+                    None => {
+                        ui.label("—");
+                    }
+                }
+                let placing = app.picking == Some(p);
+                if ui
+                    .selectable_label(placing, "place")
+                    .on_hover_text("then click the surface")
+                    .clicked()
+                {
+                    app.picking = if placing { None } else { Some(p) };
+                }
+                ui.end_row();
+            }
+        });
+}

@@ -1,0 +1,51 @@
+//! The side panels, one file per step. Each reads the document and view state and pushes
+//! [`Command`](super::document::Command)s; none of them computes anything itself.
+
+mod denoise_ui;
+mod file_ui;
+mod landmarks_ui;
+mod registration_ui;
+mod view_ui;
+
+use super::EditorApp;
+use eframe::egui;
+
+pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.heading("facesynth");
+    file_ui::file_ui(app, ui);
+    if !app.doc.pending.is_empty() {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.label(format!("{}…", app.doc.pending.join(", ")));
+        });
+    }
+    if let Some(error) = &app.doc.error {
+        ui.colored_label(egui::Color32::from_rgb(230, 90, 70), error);
+    } else if let Some(status) = &app.doc.status {
+        ui.small(status);
+    }
+    ui.separator();
+    egui::CollapsingHeader::new("Denoise")
+        .default_open(true)
+        .show(ui, |ui| denoise_ui::denoise_ui(app, ui));
+    egui::CollapsingHeader::new("Landmarks")
+        .default_open(true)
+        .show(ui, |ui| landmarks_ui::landmarks_ui(app, ui));
+    egui::CollapsingHeader::new("Registration")
+        .default_open(true)
+        .show(ui, |ui| registration_ui::registration_ui(app, ui));
+    egui::CollapsingHeader::new("View")
+        .default_open(true)
+        .show(ui, |ui| view_ui::view_ui(app, ui));
+}
+
+/// A two-column grid of (label, value) rows.
+pub fn figures_grid(ui: &mut egui::Ui, id: &str, rows: &[(&str, String)]) {
+    egui::Grid::new(id).num_columns(2).show(ui, |ui| {
+        for (k, v) in rows {
+            ui.label(*k);
+            ui.label(v);
+            ui.end_row();
+        }
+    });
+}

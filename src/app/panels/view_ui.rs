@@ -1,0 +1,51 @@
+//! View panel: colouring, shading, overlays, camera presets.
+
+use super::super::EditorApp;
+use crate::cli::Overlay;
+use crate::render::OrbitCamera;
+use eframe::egui;
+
+pub fn view_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
+    let v = &mut app.view;
+    ui.horizontal(|ui| {
+        ui.label("colour by");
+        ui.selectable_value(&mut v.overlay, Overlay::Plain, "plain");
+        ui.selectable_value(&mut v.overlay, Overlay::Denoise, "denoise");
+        ui.selectable_value(&mut v.overlay, Overlay::Registration, "registration");
+    });
+    if v.overlay == Overlay::Registration {
+        ui.checkbox(&mut v.show_scan, "Scan under the registered face");
+        ui.add_enabled(
+            v.show_scan,
+            egui::Slider::new(&mut v.scan_opacity, 0.05..=1.0).text("scan opacity"),
+        );
+    }
+    ui.checkbox(&mut v.wireframe, "Wireframe");
+    ui.checkbox(&mut v.flat_shading, "Flat shading");
+    ui.checkbox(&mut v.show_landmarks, "Feature points");
+    ui.add_enabled(
+        v.show_landmarks,
+        egui::Checkbox::new(&mut v.show_labels, "Labels"),
+    );
+    ui.horizontal(|ui| {
+        let cam = &mut app.camera;
+        if ui.button("Front").clicked() {
+            cam.yaw_rad = 0.0;
+            cam.pitch_rad = 0.0;
+        }
+        if ui.button("Left side").clicked() {
+            cam.yaw_rad = std::f64::consts::FRAC_PI_2;
+            cam.pitch_rad = 0.0;
+        }
+        if ui.button("Right side").clicked() {
+            cam.yaw_rad = -std::f64::consts::FRAC_PI_2;
+            cam.pitch_rad = 0.0;
+        }
+        if ui.button("Reset").clicked()
+            && let Some((lo, hi)) = app.framed_on
+        {
+            *cam = OrbitCamera::framing(lo, hi);
+        }
+    });
+    ui.small("Drag: orbit · right/middle drag: pan · scroll: zoom · double-click: reset");
+}
