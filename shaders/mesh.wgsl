@@ -7,7 +7,13 @@ struct Camera {
     eye: vec4<f32>,
     // Viewport size in physical pixels (x, y); z = marker radius in pixels; w unused.
     viewport: vec4<f32>,
+    // Cut-away plane: fragments with dot(clip.xyz, p) > clip.w are discarded (xyz = 0: off).
+    clip: vec4<f32>,
 };
+
+fn clipped(p: vec3<f32>) -> bool {
+    return dot(camera.clip.xyz, camera.clip.xyz) > 0.0 && dot(camera.clip.xyz, p) > camera.clip.w;
+}
 
 struct Draw {
     // Used when the mesh has no per-vertex colours (colour.a < 0 means "use vertex colour").
@@ -44,6 +50,9 @@ fn vs_mesh(v: MeshIn) -> MeshOut {
 
 @fragment
 fn fs_mesh(f: MeshOut) -> @location(0) vec4<f32> {
+    if (clipped(f.world)) {
+        discard;
+    }
     var n = normalize(f.normal);
     if (draw.params.x > 0.5 || dot(f.normal, f.normal) < 1e-12) {
         // Flat shading: the face normal from screen-space derivatives of the position.
@@ -59,17 +68,31 @@ fn fs_mesh(f: MeshOut) -> @location(0) vec4<f32> {
 }
 
 // Edges as a line list; pulled slightly towards the camera so they win the depth test
-// against the faces they lie on.
+// against the faces they lie on. Uniform colour, or per-vertex (muscle arrows) when the
+// uniform colour's alpha is negative.
+struct LineOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) colour: vec4<f32>,
+};
+
 @vertex
-fn vs_line(v: MeshIn) -> @builtin(position) vec4<f32> {
+fn vs_line(v: MeshIn) -> LineOut {
+    var out: LineOut;
     var clip = camera.view_proj * vec4<f32>(v.position, 1.0);
     clip.z = clip.z - draw.params.z * clip.w;
-    return clip;
+    out.clip = clip;
+    out.world = v.position;
+    out.colour = select(draw.colour, v.colour, draw.colour.a < 0.0);
+    return out;
 }
 
 @fragment
-fn fs_line() -> @location(0) vec4<f32> {
-    return vec4<f32>(draw.colour.rgb, draw.colour.a * draw.params.y);
+fn fs_line(f: LineOut) -> @location(0) vec4<f32> {
+    if (clipped(f.world)) {
+        discard;
+    }
+    return vec4<f32>(f.colour.rgb, abs(f.colour.a) * draw.params.y);
 }
 
 // Markers: one screen-aligned disc per instance (6 vertices, two triangles).

@@ -187,6 +187,7 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         items,
         markers,
         marker_radius_px: 5.0,
+        clip_plane: None,
     };
     ui.painter()
         .add(egui_wgpu::Callback::new_paint_callback(rect, callback));

@@ -56,6 +56,27 @@ impl MeshData {
     }
 }
 
+impl MeshData {
+    /// Line segments only (no surface), each with its own colour: muscle arrows, hex edges.
+    pub fn lines(segments: &[([f32; 3], [f32; 3], [f32; 4])]) -> Self {
+        let mut vertices = Vec::with_capacity(segments.len() * 2);
+        for &(a, b, colour) in segments {
+            for position in [a, b] {
+                vertices.push(GpuVertex {
+                    position,
+                    normal: [0.0; 3],
+                    colour,
+                });
+            }
+        }
+        MeshData {
+            edges: (0..vertices.len() as u32).collect(),
+            vertices,
+            triangles: Vec::new(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

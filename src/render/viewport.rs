@@ -17,6 +17,7 @@ struct CameraUniform {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
     viewport: [f32; 4],
+    clip: [f32; 4],
 }
 
 #[repr(C)]
@@ -39,7 +40,8 @@ pub struct DrawStyle {
     pub opacity: f32,
     /// Draw polygon edges.
     pub wireframe: bool,
-    pub wire_colour: [f32; 4],
+    /// Edge colour; `None` uses the per-vertex colours (line-only items such as arrows).
+    pub wire_colour: Option<[f32; 4]>,
 }
 
 impl Default for DrawStyle {
@@ -50,7 +52,7 @@ impl Default for DrawStyle {
             flat: false,
             opacity: 1.0,
             wireframe: false,
-            wire_colour: [0.08, 0.1, 0.14, 0.55],
+            wire_colour: Some([0.08, 0.1, 0.14, 0.55]),
         }
     }
 }
@@ -82,6 +84,8 @@ pub struct ViewportCallback {
     pub items: Vec<SceneItem>,
     pub markers: Vec<MarkerInstance>,
     pub marker_radius_px: f32,
+    /// Cut-away: points with `normal · p > offset` are not drawn (`None`: no cut).
+    pub clip_plane: Option<(glam::Vec3, f32)>,
 }
 
 struct GpuMesh {
@@ -516,6 +520,9 @@ impl CallbackTrait for ViewportCallback {
                     self.marker_radius_px * ppp,
                     0.0,
                 ],
+                clip: self
+                    .clip_plane
+                    .map_or([0.0; 4], |(n, d)| [n.x, n.y, n.z, d]),
             }),
         );
         r.frame_order.clear();
@@ -539,7 +546,7 @@ impl CallbackTrait for ViewportCallback {
                 &mesh.wire_uniform,
                 0,
                 bytemuck::bytes_of(&DrawUniform {
-                    colour: s.wire_colour,
+                    colour: s.wire_colour.unwrap_or([0.0, 0.0, 0.0, -1.0]),
                     params: [0.0, 1.0, 0.0005, 0.0],
                 }),
             );
