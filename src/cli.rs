@@ -3,6 +3,8 @@
 //! Every command prints one JSON object on stdout (machine-readable, pipe into `jq`) and
 //! returns an error that `main` prints as one line before exiting with code 1.
 
+mod fem;
+
 use crate::{denoise, generic_face, io};
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -72,8 +74,59 @@ pub enum Command {
         #[arg(long)]
         report: Option<PathBuf>,
     },
+    /// Synthesize expressions with the layered FEM face (paper section 2): writes neutral.obj,
+    /// one OBJ per expression and report.json into DIR.
+    Synthesize {
+        /// Neutral scan; without it the generic face is used.
+        scan: Option<PathBuf>,
+        /// The scan's 13 feature points as JSON (name → [x, y, z] mm); required with SCAN.
+        #[arg(long)]
+        landmarks: Option<PathBuf>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// `all` or a comma-separated list of preset names.
+        #[arg(long, default_value = "all")]
+        expressions: String,
+        /// Extra presets (RON, like assets/expressions.ron); same names replace built-ins.
+        #[arg(long)]
+        presets: Option<PathBuf>,
+        /// Muscle definitions (RON, like assets/muscles.ron) instead of the built-in ones.
+        #[arg(long)]
+        muscles: Option<PathBuf>,
+    },
+    /// Export the FEM model with one expression's displacements as legacy VTK (ParaView).
+    ExportFem {
+        /// Neutral scan; without it the generic face is used.
+        scan: Option<PathBuf>,
+        /// The scan's 13 feature points as JSON; required with SCAN.
+        #[arg(long)]
+        landmarks: Option<PathBuf>,
+        /// Preset name (e.g. happiness).
+        #[arg(long)]
+        expression: String,
+        /// Output .vtk file.
+        #[arg(long)]
+        vtk: PathBuf,
+        /// Extra presets (RON).
+        #[arg(long)]
+        presets: Option<PathBuf>,
+    },
+    /// Print timings as JSON.
+    Bench {
+        #[command(subcommand)]
+        what: BenchWhat,
+    },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
+}
+
+/// What `facesynth bench` measures.
+#[derive(Debug, Clone, Copy, Subcommand)]
+pub enum BenchWhat {
+    /// FEM face: assembly, factorization, one solve, 18-muscle basis, slider update; also with
+    /// 4× the elements and on the 53×53×3 test slab.
+    Fem,
 }
 
 /// Options of the editor window.
@@ -188,6 +241,37 @@ pub fn run(cli: Cli) -> Result<()> {
             out.as_deref(),
             report.as_deref(),
         )?),
+        Some(Command::Synthesize {
+            scan,
+            landmarks,
+            out,
+            expressions,
+            presets,
+            muscles,
+        }) => print_json(&fem::synthesize(
+            scan.as_deref(),
+            landmarks.as_deref(),
+            &out,
+            &expressions,
+            presets.as_deref(),
+            muscles.as_deref(),
+        )?),
+        Some(Command::ExportFem {
+            scan,
+            landmarks,
+            expression,
+            vtk,
+            presets,
+        }) => print_json(&fem::export_fem(
+            scan.as_deref(),
+            landmarks.as_deref(),
+            &expression,
+            &vtk,
+            presets.as_deref(),
+        )?),
+        Some(Command::Bench {
+            what: BenchWhat::Fem,
+        }) => print_json(&fem::bench_fem()?),
         Some(Command::View(args)) => view(args),
         None => view(cli.view),
     }

@@ -36,6 +36,54 @@ pub enum Error {
     /// An algorithm could not produce a result (e.g. no nose tip found, singular system).
     #[error("{step}: {message}")]
     Algorithm { step: &'static str, message: String },
+    /// The finite-element face model is ill-posed or its inputs are invalid.
+    #[error("fem: {0}")]
+    Fem(#[from] FemError),
+}
+
+/// Why the finite-element model (src/fem) cannot be built or solved. Each variant says what to
+/// change; none of them lets NaN displacements out.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FemError {
+    /// Without fixed nodes the stiffness matrix is singular (rigid-body motion).
+    #[error("no fixed nodes: fix at least the cranium layer, or the system is singular")]
+    NoFixedNodes,
+    /// Some parts of the mesh are held by fewer than three non-collinear fixed nodes, so they
+    /// can move rigidly.
+    #[error(
+        "{free_nodes} free nodes belong to parts of the mesh held by fewer than three non-collinear fixed nodes (singular system); fix more nodes in every connected part"
+    )]
+    FloatingPart { free_nodes: usize },
+    /// A layer's Young's modulus is not finite and > 0, or its Poisson ratio not in (−1, 0.5).
+    #[error(
+        "layer `{layer}`: invalid material (young_modulus_pa = {young_modulus_pa}, poisson_ratio = {poisson_ratio}); need E > 0 and -1 < nu < 0.5"
+    )]
+    InvalidMaterial {
+        layer: String,
+        young_modulus_pa: f64,
+        poisson_ratio: f64,
+    },
+    /// An element's Jacobian determinant is ≤ 0 at a Gauss point (inverted or flat element);
+    /// thinner layers or smoother normals usually fix it.
+    #[error(
+        "element {element} is inverted or flat (min Jacobian determinant {min_jacobian_det:.3e} mm^3); reduce the layer thickness"
+    )]
+    InvertedElement {
+        element: usize,
+        min_jacobian_det: f64,
+    },
+    /// The sparse Cholesky factorization failed (matrix not positive definite).
+    #[error("stiffness matrix is not positive definite: {0}")]
+    NotPositiveDefinite(String),
+    /// The surface has a face the layer builder cannot extrude.
+    #[error("face {face} has {corners} corners; only triangles and quads can be extruded")]
+    UnsupportedPolygon { face: usize, corners: usize },
+    /// A muscle, expression or parameter is malformed or names something unknown.
+    #[error("{0}")]
+    Definition(String),
+    /// A computed result was not finite (reported instead of writing NaNs).
+    #[error("{0} is not finite")]
+    NonFinite(&'static str),
 }
 
 impl Error {

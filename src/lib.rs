@@ -12,6 +12,9 @@ pub mod denoise;
 pub mod error;
 /// The 13 named feature points shared by the generic face, detection and registration.
 pub mod feature_points;
+/// Layered hexahedral FEM face (paper section 2): element, layers, assembly, cached Cholesky,
+/// muscles, expressions.
+pub mod fem;
 /// The project's own generic face, built by code (paper section 2, Figure 3b).
 pub mod generic_face;
 /// Ground truth of the synthetic GavabDB-like benchmark (../shared/bench/synth_gavab.py).
@@ -30,6 +33,6 @@ pub mod app;
 #[cfg(feature = "gui")]
 pub mod render;
 
-pub use error::{Error, Result};
+pub use error::{Error, FemError, Result};
 pub use feature_points::{FeaturePoint, Landmarks};
 pub use mesh::Mesh;

@@ -1,0 +1,277 @@
+//! `facesynth synthesize`, `export-fem` and `bench fem`: the FEM face on the command line.
+
+use crate::fem::expressions::ExpressionSet;
+use crate::fem::muscles::MuscleSet;
+use crate::fem::{FaceModel, FemParams, HexMesh};
+use crate::generic_face::{self, GenericFace};
+use crate::{denoise, io};
+use anyhow::{Context, Result};
+use serde_json::json;
+use std::path::Path;
+use std::time::Instant;
+
+/// The face to build the model on: the generic face, or the generic face registered to `scan`
+/// (denoised first) with the scan's landmarks from a JSON file.
+pub fn face_for(scan: Option<&Path>, landmarks: Option<&Path>) -> Result<GenericFace> {
+    let generic = generic_face::build();
+    let Some(scan) = scan else {
+        return Ok(generic);
+    };
+    // TODO(#5): automatic feature-point detection replaces --landmarks once it lands.
+    let landmarks = landmarks.context(
+        "--landmarks FILE.json is required with a scan (automatic feature-point detection is not wired in yet)",
+    )?;
+    let text = std::fs::read_to_string(landmarks)
+        .with_context(|| format!("{}: cannot read", landmarks.display()))?;
+    let points: crate::Landmarks = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a landmark file", landmarks.display()))?;
+    let mut mesh = io::read_mesh(scan)?;
+    denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
+    let params = crate::registration::RegistrationParams::default();
+    let result = crate::registration::register(&generic, &mesh, &points, &params)?;
+    Ok(GenericFace {
+        mesh: result.mesh,
+        feature_vertices: generic.feature_vertices,
+    })
+}
+
+/// Presets: the built-ins plus an optional user file (same names replace built-ins).
+pub fn expression_set(user: Option<&Path>) -> Result<ExpressionSet> {
+    let mut set = ExpressionSet::builtin();
+    if let Some(path) = user {
+        set.merge(ExpressionSet::load(path)?);
+    }
+    Ok(set)
+}
+
+/// Builds, factors and solves the muscle basis.
+pub fn solved_model(face: &GenericFace, muscles: Option<&Path>) -> Result<FaceModel> {
+    let mut model = FaceModel::from_generic(face, &FemParams::default())?;
+    model.factor()?;
+    let set = match muscles {
+        Some(path) => MuscleSet::load(path)?,
+        None => MuscleSet::builtin(),
+    };
+    model.set_muscles(&set)?;
+    model.compute_basis()?;
+    Ok(model)
+}
+
+fn round(x: f64, digits: i32) -> f64 {
+    let s = 10f64.powi(digits);
+    (x * s).round() / s
+}
+
+/// `facesynth synthesize`.
+pub fn synthesize(
+    scan: Option<&Path>,
+    landmarks: Option<&Path>,
+    out: &Path,
+    expressions: &str,
+    presets: Option<&Path>,
+    muscles: Option<&Path>,
+) -> Result<serde_json::Value> {
+    let face = face_for(scan, landmarks)?;
+    let set = expression_set(presets)?;
+    let selected = set.select(expressions)?;
+    let model = solved_model(&face, muscles)?;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    io::write_mesh(&out.join("neutral.obj"), &model.surface)?;
+    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let mut report = serde_json::Map::new();
+    let mut u = Vec::new();
+    for e in selected {
+        let a = e.activations_for(&names)?;
+        model.combine_surface(&a, &mut u)?;
+        let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
+        let mean = u.iter().map(|d| d.length()).sum::<f64>() / u.len().max(1) as f64;
+        io::write_mesh(
+            &out.join(format!("{}.obj", e.name)),
+            &model.deformed_surface(&a)?,
+        )?;
+        report.insert(
+            e.name.clone(),
+            json!({"max_displacement_mm": round(max, 4), "mean_displacement_mm": round(mean, 4)}),
+        );
+    }
+    let value = json!({
+        "dofs": model.dofs(),
+        "elements": model.elements(),
+        "factor_millis": round(model.timings.factor_millis, 3),
+        "basis_millis": round(model.timings.basis_millis, 3),
+        "min_scaled_jacobian": round(model.quality.min_scaled_jacobian, 4),
+        "mean_scaled_jacobian": round(model.quality.mean_scaled_jacobian, 4),
+        "expressions": report,
+    });
+    io::write_text_atomic(
+        &out.join("report.json"),
+        &(serde_json::to_string_pretty(&value)? + "\n"),
+    )?;
+    Ok(value)
+}
+
+/// `facesynth export-fem`.
+pub fn export_fem(
+    scan: Option<&Path>,
+    landmarks: Option<&Path>,
+    expression: &str,
+    vtk: &Path,
+    presets: Option<&Path>,
+) -> Result<serde_json::Value> {
+    let face = face_for(scan, landmarks)?;
+    let set = expression_set(presets)?;
+    let e = set.get(expression).with_context(|| {
+        format!(
+            "unknown expression `{expression}` (known: {})",
+            set.names().join(", ")
+        )
+    })?;
+    let model = solved_model(&face, None)?;
+    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let a = e.activations_for(&names)?;
+    let u = model.combine_volume(&a)?;
+    let f = model.forces(&a);
+    crate::fem::vtk::write(vtk, &model, &u, &f)?;
+    Ok(json!({
+        "vtk": vtk, "expression": expression, "points": model.volume.nodes_mm.len(),
+        "cells": model.elements(), "dofs": model.dofs(),
+        "max_displacement_mm": round(u.iter().map(|d| d.length()).fold(0.0, f64::max), 4),
+    }))
+}
+
+fn millis(start: Instant) -> f64 {
+    round(start.elapsed().as_secs_f64() * 1e3, 3)
+}
+
+/// Times one model: build (assembly), factor, one solve, basis, slider update, modulus change.
+fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
+    let t = Instant::now();
+    let mut model = FaceModel::from_generic(face, &FemParams::default())?;
+    let build_millis = millis(t);
+    let t = Instant::now();
+    model.factor()?;
+    let factor_millis = millis(t);
+    model.set_muscles(&MuscleSet::builtin())?;
+    let forces = model.muscles()[0].nodal_forces(model.volume.nodes_mm.len());
+    let t = Instant::now();
+    model.solve(&forces)?;
+    let solve_millis = millis(t);
+    let t = Instant::now();
+    model.compute_basis()?;
+    let basis_millis = millis(t);
+    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let a = ExpressionSet::builtin().expressions[0].activations_for(&names)?;
+    let mut u = Vec::new();
+    let reps = 200;
+    let t = Instant::now();
+    for _ in 0..reps {
+        model.combine_surface(&a, &mut u)?;
+    }
+    let slider_micros = round(t.elapsed().as_secs_f64() * 1e6 / reps as f64, 2);
+    let p = model.params;
+    let t = Instant::now();
+    let mut skin = p.skin;
+    skin.young_modulus_pa *= 1.1;
+    model.set_materials(skin, p.fat)?;
+    model.factor()?;
+    let modulus_change_millis = millis(t);
+    model.compute_basis()?;
+    let mut m = model.muscles()[0].clone();
+    m.forces_n.iter_mut().for_each(|f| *f *= 1.5);
+    let t = Instant::now();
+    model.set_muscle(0, m)?;
+    let resolve_one_muscle_millis = millis(t);
+    Ok(json!({
+        "dofs": model.dofs(),
+        "elements": model.elements(),
+        "nonzeros_upper": model.system().nonzeros(),
+        "assembly_millis": round(model.timings.assembly_millis, 3),
+        "build_millis": build_millis,
+        "symbolic_analysis_millis": round(model.timings.analysis_millis, 3),
+        "factorization_millis": factor_millis,
+        "one_solve_millis": solve_millis,
+        "basis_18_muscles_millis": basis_millis,
+        "factor_plus_basis_millis": round(factor_millis + basis_millis, 3),
+        "slider_update_micros": slider_micros,
+        "modulus_change_refactor_millis": modulus_change_millis,
+        "resolve_one_muscle_millis": round(resolve_one_muscle_millis, 3),
+    }))
+}
+
+/// Each quad of `face` split into 4 (4× the elements), feature vertices kept.
+fn refine_face(face: &GenericFace) -> GenericFace {
+    let mesh = &face.mesh;
+    let mut positions = mesh.positions_mm.clone();
+    let mut edge_mid = std::collections::HashMap::new();
+    let mut mid = |a: u32, b: u32, positions: &mut Vec<glam::DVec3>| -> u32 {
+        *edge_mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            positions.push((positions[a as usize] + positions[b as usize]) * 0.5);
+            (positions.len() - 1) as u32
+        })
+    };
+    let mut faces = Vec::new();
+    for poly in mesh.faces.iter() {
+        if poly.len() != 4 {
+            faces.push(poly.to_vec());
+            continue;
+        }
+        let c: glam::DVec3 = poly
+            .iter()
+            .map(|&v| positions[v as usize])
+            .sum::<glam::DVec3>()
+            / 4.0;
+        positions.push(c);
+        let ci = (positions.len() - 1) as u32;
+        let m: Vec<u32> = (0..4)
+            .map(|k| mid(poly[k], poly[(k + 1) % 4], &mut positions))
+            .collect();
+        for k in 0..4 {
+            faces.push(vec![poly[k], m[k], ci, m[(k + 3) % 4]]);
+        }
+    }
+    GenericFace {
+        mesh: crate::Mesh::from_faces(positions, faces),
+        feature_vertices: face.feature_vertices,
+    }
+}
+
+/// `facesynth bench fem`: JSON timings on the generic face and on 4× its elements.
+pub fn bench_fem() -> Result<serde_json::Value> {
+    let face = generic_face::build();
+    let base = bench_model(&face)?;
+    let fine = bench_model(&refine_face(&face))?;
+    // The shared test slab of ../shared/STACK.md: 53×53×3 nodes.
+    let slab = HexMesh::block(glam::DVec3::new(130.0, 130.0, 12.0), 52, 52, 2);
+    let fixed: Vec<bool> = slab.nodes_mm.iter().map(|p| p.z == 0.0).collect();
+    let t = Instant::now();
+    let mut system = crate::fem::assembly::ReducedSystem::new(&slab, &fixed, &[0.45])?;
+    let slab_assembly = millis(t);
+    let t = Instant::now();
+    system.combine(&[5600.0]);
+    let combine = millis(t);
+    let t = Instant::now();
+    let mut solver = crate::fem::solver::CachedCholesky::analyze(
+        system.dofs(),
+        &system.col_ptr,
+        &system.row_idx,
+    )?;
+    let analysis = millis(t);
+    let t = Instant::now();
+    solver.factor(&system.col_ptr, &system.row_idx, &system.values)?;
+    let factor = millis(t);
+    let mut rhs = vec![1e-3; system.dofs()];
+    let t = Instant::now();
+    solver.solve_in_place(&mut rhs)?;
+    let solve = millis(t);
+    Ok(json!({
+        "note": "wall-clock on this machine; debug or release as built",
+        "threads": rayon::current_num_threads(),
+        "generic_face": base,
+        "generic_face_4x_elements": fine,
+        "slab_53x53x3": {
+            "dofs": system.dofs(), "assembly_millis": slab_assembly,
+            "combine_millis": combine, "symbolic_millis": analysis,
+            "factor_millis": factor, "one_solve_millis": solve,
+        },
+    }))
+}

@@ -1,0 +1,534 @@
+//! The layered hexahedral finite-element face (paper section 2).
+//!
+//! Pipeline: [`layers::extrude`] offsets the (registered) generic surface into 3 node layers /
+//! 2 element layers; [`assembly::ReducedSystem`] assembles linear isotropic [`hex8`] stiffness
+//! over the free DOFs into a fixed sparsity pattern; [`solver::CachedCholesky`] factors it once;
+//! [`muscles`] turn 18 feature-point-relative muscle definitions into nodal forces; the muscle
+//! basis `u_i = K⁻¹ f_i` is solved once, after which any expression
+//! ([`expressions`]) is `u = Σ a_i u_i` — a slider change is an 18-term sum, not a solve.
+//!
+//! **Units:** positions and displacements mm, forces N, Young's moduli Pa (converted to
+//! N/mm² = MPa inside [`hex8`]), so stiffness is N/mm.
+//!
+//! [`FaceModel`] is the stateful object a GUI worker thread keeps: build it from a mesh + the
+//! 13 feature-point vertex ids, then factor, compute the basis, change a modulus (numeric
+//! refactor only), re-solve one muscle, and combine activations.
+
+pub mod assembly;
+pub mod expressions;
+pub mod hex8;
+pub mod layers;
+pub mod muscles;
+pub mod solver;
+pub mod vtk;
+
+use crate::feature_points::FeaturePoint;
+use crate::generic_face::GenericFace;
+use crate::{FemError, Mesh, Result};
+use assembly::ReducedSystem;
+use glam::DVec3;
+use layers::{ElementQuality, LayerParams};
+use muscles::{Muscle, MuscleSet};
+use solver::CachedCholesky;
+use std::time::Instant;
+
+/// Material group of the skin elements (top element layer).
+pub const SKIN: u8 = 0;
+/// Material group of the fatty-tissue elements (bottom element layer).
+pub const FAT: u8 = 1;
+
+/// A hexahedral mesh (hex8, VTK node order) with a material group per element.
+#[derive(Debug, Clone, Default)]
+pub struct HexMesh {
+    /// Node positions, mm.
+    pub nodes_mm: Vec<DVec3>,
+    /// 8 node ids per element.
+    pub elements: Vec<[u32; 8]>,
+    /// Material group of each element (index into the model's materials).
+    pub element_group: Vec<u8>,
+    /// A name per material group (for messages and exports).
+    pub group_names: Vec<String>,
+}
+
+impl HexMesh {
+    /// The 8 node positions of element `e`.
+    pub fn element_nodes(&self, e: usize) -> [DVec3; 8] {
+        self.elements[e].map(|n| self.nodes_mm[n as usize])
+    }
+
+    /// A structured `nx × ny × nz`-element box `[0, size.x] × [0, size.y] × [0, size.z]` (one
+    /// material group), for tests and benchmarks. Node `(i, j, k)` is `i + (nx+1)(j + (ny+1)k)`.
+    pub fn block(size_mm: DVec3, nx: usize, ny: usize, nz: usize) -> HexMesh {
+        let id = |i: usize, j: usize, k: usize| (i + (nx + 1) * (j + (ny + 1) * k)) as u32;
+        let mut nodes_mm = Vec::new();
+        for k in 0..=nz {
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    nodes_mm.push(DVec3::new(
+                        size_mm.x * i as f64 / nx as f64,
+                        size_mm.y * j as f64 / ny as f64,
+                        size_mm.z * k as f64 / nz as f64,
+                    ));
+                }
+            }
+        }
+        let mut elements = Vec::new();
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    elements.push([
+                        id(i, j, k),
+                        id(i + 1, j, k),
+                        id(i + 1, j + 1, k),
+                        id(i, j + 1, k),
+                        id(i, j, k + 1),
+                        id(i + 1, j, k + 1),
+                        id(i + 1, j + 1, k + 1),
+                        id(i, j + 1, k + 1),
+                    ]);
+                }
+            }
+        }
+        let count = elements.len();
+        HexMesh {
+            nodes_mm,
+            elements,
+            element_group: vec![0; count],
+            group_names: vec!["block".into()],
+        }
+    }
+}
+
+/// Linear isotropic material of one layer.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Material {
+    /// Young's modulus, Pa (> 0).
+    pub young_modulus_pa: f64,
+    /// Poisson ratio, in (−1, 0.5); 0.45 models quasi-incompressible tissue.
+    pub poisson_ratio: f64,
+}
+
+impl Material {
+    fn check(&self, layer: &str) -> Result<()> {
+        if !(self.young_modulus_pa > 0.0
+            && self.young_modulus_pa.is_finite()
+            && self.poisson_ratio > -1.0
+            && self.poisson_ratio < 0.5)
+        {
+            return Err(FemError::InvalidMaterial {
+                layer: layer.into(),
+                young_modulus_pa: self.young_modulus_pa,
+                poisson_ratio: self.poisson_ratio,
+            }
+            .into());
+        }
+        Ok(())
+    }
+}
+
+/// Parameters of the face model. Defaults are the paper's (section 2, after its ref. [14]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FemParams {
+    /// Layer thicknesses (default skin 3 mm + fat 9 mm).
+    pub layers: LayerParams,
+    /// Skin: E = 5.6 kPa, ν = 0.45.
+    pub skin: Material,
+    /// Fatty tissue: E = 0.12 kPa, ν = 0.45.
+    pub fat: Material,
+}
+
+impl Default for FemParams {
+    fn default() -> Self {
+        FemParams {
+            layers: LayerParams::default(),
+            skin: Material {
+                young_modulus_pa: 5600.0,
+                poisson_ratio: 0.45,
+            },
+            fat: Material {
+                young_modulus_pa: 120.0,
+                poisson_ratio: 0.45,
+            },
+        }
+    }
+}
+
+/// Wall-clock times of the last operations, milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Timings {
+    /// Pattern + scatter map + unit matrices (per-element stiffness).
+    pub assembly_millis: f64,
+    /// Symbolic analysis (once per pattern).
+    pub analysis_millis: f64,
+    /// Combining the unit matrices and the numeric factorization.
+    pub factor_millis: f64,
+    /// Solving the whole muscle basis.
+    pub basis_millis: f64,
+}
+
+/// The face FEM model: the layered volume, its boundary conditions, the cached factorization
+/// and the muscle basis.
+#[derive(Debug, Clone)]
+pub struct FaceModel {
+    /// The skin surface (the first `surface.vertex_count()` nodes of `volume`).
+    pub surface: Mesh,
+    /// Vertex id of each feature point on `surface`, in [`FeaturePoint::ALL`] order.
+    pub feature_vertices: [u32; FeaturePoint::COUNT],
+    pub params: FemParams,
+    /// The two-layer hexahedral volume.
+    pub volume: HexMesh,
+    /// Shape quality of `volume`'s elements.
+    pub quality: ElementQuality,
+    fixed: Vec<bool>,
+    system: ReducedSystem,
+    solver: CachedCholesky,
+    muscles: Vec<Muscle>,
+    /// Per muscle: full nodal displacement (3 per node, mm) at unit activation; empty if stale.
+    basis: Vec<Vec<f64>>,
+    pub timings: Timings,
+}
+
+impl FaceModel {
+    /// Builds the layered volume of `surface`, fixes the cranium layer and the face's outer
+    /// border, assembles and analyses the system (not yet factored; see [`factor`](Self::factor)).
+    ///
+    /// Errors on invalid materials or thicknesses, an inverted element, non-extrudable faces.
+    pub fn new(
+        surface: &Mesh,
+        feature_vertices: [u32; FeaturePoint::COUNT],
+        params: &FemParams,
+    ) -> Result<Self> {
+        params.skin.check("skin")?;
+        params.fat.check("fat")?;
+        if let Some(&v) = feature_vertices
+            .iter()
+            .find(|&&v| v as usize >= surface.vertex_count())
+        {
+            return Err(FemError::Definition(format!(
+                "feature-point vertex {v} is not a vertex of the surface"
+            ))
+            .into());
+        }
+        let start = Instant::now();
+        let (volume, smoothing_rounds) = layers::extrude_valid(surface, &params.layers)?;
+        let quality = layers::element_quality(&volume);
+        let fixed = default_fixed_nodes(surface);
+        let system = ReducedSystem::new(
+            &volume,
+            &fixed,
+            &[params.skin.poisson_ratio, params.fat.poisson_ratio],
+        )?;
+        let assembly_millis = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        let solver = CachedCholesky::analyze(system.dofs(), &system.col_ptr, &system.row_idx)?;
+        let analysis_millis = start.elapsed().as_secs_f64() * 1e3;
+        Ok(FaceModel {
+            surface: surface.clone(),
+            feature_vertices,
+            params: FemParams {
+                layers: LayerParams {
+                    normal_smoothing_rounds: smoothing_rounds,
+                    ..params.layers
+                },
+                ..*params
+            },
+            volume,
+            quality,
+            fixed,
+            system,
+            solver,
+            muscles: Vec::new(),
+            basis: Vec::new(),
+            timings: Timings {
+                assembly_millis,
+                analysis_millis,
+                ..Timings::default()
+            },
+        })
+    }
+
+    /// [`FaceModel::new`] on a generic (or registered generic) face.
+    pub fn from_generic(face: &GenericFace, params: &FemParams) -> Result<Self> {
+        Self::new(&face.mesh, face.feature_vertices, params)
+    }
+
+    /// Free DOFs of the reduced system.
+    pub fn dofs(&self) -> usize {
+        self.system.dofs()
+    }
+
+    /// Hexahedra in the volume.
+    pub fn elements(&self) -> usize {
+        self.volume.elements.len()
+    }
+
+    /// The reduced system (pattern, values), e.g. for checks.
+    pub fn system(&self) -> &ReducedSystem {
+        &self.system
+    }
+
+    /// Which volume nodes are held in place.
+    pub fn fixed_nodes(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    /// Replaces the fixed-node set (one flag per volume node): rebuilds the pattern, re-analyses
+    /// and drops the factor and basis. Errors if the new set leaves the system singular.
+    pub fn set_fixed_nodes(&mut self, fixed: Vec<bool>) -> Result<()> {
+        if fixed.len() != self.volume.nodes_mm.len() {
+            return Err(FemError::Definition(format!(
+                "{} fixed flags for {} nodes",
+                fixed.len(),
+                self.volume.nodes_mm.len()
+            ))
+            .into());
+        }
+        let start = Instant::now();
+        let system = ReducedSystem::new(
+            &self.volume,
+            &fixed,
+            &[
+                self.params.skin.poisson_ratio,
+                self.params.fat.poisson_ratio,
+            ],
+        )?;
+        self.timings.assembly_millis = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        self.solver = CachedCholesky::analyze(system.dofs(), &system.col_ptr, &system.row_idx)?;
+        self.timings.analysis_millis = start.elapsed().as_secs_f64() * 1e3;
+        self.system = system;
+        self.fixed = fixed;
+        self.basis.clear();
+        Ok(())
+    }
+
+    /// Changes the layer materials. A Young's-modulus change only recombines the unit
+    /// matrices; a Poisson-ratio change re-assembles that layer. Drops the factor and basis
+    /// (call [`factor`](Self::factor) and [`compute_basis`](Self::compute_basis) again).
+    pub fn set_materials(&mut self, skin: Material, fat: Material) -> Result<()> {
+        skin.check("skin")?;
+        fat.check("fat")?;
+        self.system
+            .set_poisson_ratio(&self.volume, SKIN as usize, skin.poisson_ratio)?;
+        self.system
+            .set_poisson_ratio(&self.volume, FAT as usize, fat.poisson_ratio)?;
+        self.params.skin = skin;
+        self.params.fat = fat;
+        self.solver.invalidate();
+        self.basis.clear();
+        Ok(())
+    }
+
+    /// Combines the unit matrices with the current moduli and factors (numeric only).
+    pub fn factor(&mut self) -> Result<()> {
+        let start = Instant::now();
+        self.system.combine(&[
+            self.params.skin.young_modulus_pa,
+            self.params.fat.young_modulus_pa,
+        ]);
+        self.solver.factor(
+            &self.system.col_ptr,
+            &self.system.row_idx,
+            &self.system.values,
+        )?;
+        self.timings.factor_millis = start.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+
+    /// Whether the current matrix is factored.
+    pub fn is_factored(&self) -> bool {
+        self.solver.is_factored()
+    }
+
+    fn ensure_factored(&mut self) -> Result<()> {
+        if !self.solver.is_factored() {
+            self.factor()?;
+        }
+        Ok(())
+    }
+
+    /// Solves `K u = f` for nodal forces `forces_n` (one per volume node, N; forces on fixed
+    /// nodes are ignored) and returns the nodal displacements (mm; fixed nodes 0). Uses the
+    /// cached factor (factoring first if needed).
+    pub fn solve(&mut self, forces_n: &[DVec3]) -> Result<Vec<DVec3>> {
+        self.ensure_factored()?;
+        let full = flatten(forces_n);
+        let mut rhs = self.system.restrict(&full);
+        self.solver.solve_in_place(&mut rhs)?;
+        let mut out = vec![0.0; full.len()];
+        self.system.extend(&rhs, &mut out);
+        Ok(unflatten(&out))
+    }
+
+    /// Resolves the muscle definitions against this face's feature points and drops the basis.
+    pub fn set_muscles(&mut self, set: &MuscleSet) -> Result<()> {
+        self.muscles = set.resolve(self)?;
+        self.basis.clear();
+        Ok(())
+    }
+
+    /// The resolved muscles (empty until [`set_muscles`](Self::set_muscles)).
+    pub fn muscles(&self) -> &[Muscle] {
+        &self.muscles
+    }
+
+    /// Index of the muscle called `name`.
+    pub fn muscle_index(&self, name: &str) -> Option<usize> {
+        self.muscles.iter().position(|m| m.name == name)
+    }
+
+    /// Solves the muscle basis: one displacement field per muscle at unit activation, all
+    /// right-hand sides in one call to the cached factor.
+    pub fn compute_basis(&mut self) -> Result<()> {
+        self.ensure_factored()?;
+        let start = Instant::now();
+        let dim = self.system.dofs();
+        let count = self.muscles.len();
+        let mut rhs = vec![0.0; dim * count];
+        for (i, muscle) in self.muscles.iter().enumerate() {
+            let full = flatten(&muscle.nodal_forces(self.volume.nodes_mm.len()));
+            rhs[i * dim..(i + 1) * dim].copy_from_slice(&self.system.restrict(&full));
+        }
+        if count > 0 {
+            self.solver.solve_many_in_place(&mut rhs, count)?;
+        }
+        let n3 = 3 * self.volume.nodes_mm.len();
+        self.basis = (0..count)
+            .map(|i| {
+                let mut full = vec![0.0; n3];
+                self.system.extend(&rhs[i * dim..(i + 1) * dim], &mut full);
+                full
+            })
+            .collect();
+        self.timings.basis_millis = start.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+
+    /// Whether the basis matches the current muscles, materials and fixed nodes.
+    pub fn has_basis(&self) -> bool {
+        self.basis.len() == self.muscles.len() && !self.muscles.is_empty()
+    }
+
+    /// Replaces muscle `index` (e.g. a new force direction or magnitude) and re-solves only its
+    /// basis vector with the cached factor.
+    pub fn set_muscle(&mut self, index: usize, muscle: Muscle) -> Result<()> {
+        if index >= self.muscles.len() {
+            return Err(FemError::Definition(format!("no muscle {index}")).into());
+        }
+        self.muscles[index] = muscle;
+        if !self.has_basis() {
+            return self.compute_basis();
+        }
+        let forces = self.muscles[index].nodal_forces(self.volume.nodes_mm.len());
+        let u = self.solve(&forces)?;
+        self.basis[index] = flatten(&u);
+        Ok(())
+    }
+
+    /// Per muscle: the displacement (mm) of every volume node at unit activation.
+    pub fn basis_displacement(&self, muscle: usize) -> Option<Vec<DVec3>> {
+        self.basis.get(muscle).map(|b| unflatten(b))
+    }
+
+    fn check_activations(&self, activations: &[f64]) -> Result<()> {
+        if !self.has_basis() {
+            return Err(FemError::Definition(
+                "no muscle basis: call set_muscles and compute_basis".into(),
+            )
+            .into());
+        }
+        if activations.len() != self.muscles.len() || activations.iter().any(|a| !a.is_finite()) {
+            return Err(FemError::Definition(format!(
+                "need {} finite activations, got {}",
+                self.muscles.len(),
+                activations.len()
+            ))
+            .into());
+        }
+        Ok(())
+    }
+
+    /// `u = Σ a_i u_i` on the skin surface only (the slider update): writes one displacement
+    /// (mm) per surface vertex into `out`.
+    pub fn combine_surface(&self, activations: &[f64], out: &mut Vec<DVec3>) -> Result<()> {
+        self.check_activations(activations)?;
+        let n = self.surface.vertex_count();
+        out.clear();
+        out.resize(n, DVec3::ZERO);
+        for (a, basis) in activations.iter().zip(&self.basis) {
+            if *a == 0.0 {
+                continue;
+            }
+            for v in 0..n {
+                out[v] += DVec3::new(basis[3 * v], basis[3 * v + 1], basis[3 * v + 2]) * *a;
+            }
+        }
+        Ok(())
+    }
+
+    /// `u = Σ a_i u_i` at every volume node (mm).
+    pub fn combine_volume(&self, activations: &[f64]) -> Result<Vec<DVec3>> {
+        self.check_activations(activations)?;
+        let mut out = vec![DVec3::ZERO; self.volume.nodes_mm.len()];
+        for (a, basis) in activations.iter().zip(&self.basis) {
+            for (v, o) in out.iter_mut().enumerate() {
+                *o += DVec3::new(basis[3 * v], basis[3 * v + 1], basis[3 * v + 2]) * *a;
+            }
+        }
+        Ok(out)
+    }
+
+    /// The nodal forces (N) of an activation vector.
+    pub fn forces(&self, activations: &[f64]) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; self.volume.nodes_mm.len()];
+        for (muscle, &a) in self.muscles.iter().zip(activations) {
+            for (&node, &f) in muscle.nodes.iter().zip(&muscle.forces_n) {
+                out[node as usize] += f * a;
+            }
+        }
+        out
+    }
+
+    /// The skin surface deformed by an activation vector (normals recomputed).
+    pub fn deformed_surface(&self, activations: &[f64]) -> Result<Mesh> {
+        let mut u = Vec::new();
+        self.combine_surface(activations, &mut u)?;
+        let positions = self
+            .surface
+            .positions_mm
+            .iter()
+            .zip(&u)
+            .map(|(p, d)| *p + *d)
+            .collect();
+        Ok(Mesh::new(positions, self.surface.faces.clone()))
+    }
+}
+
+/// Default boundary conditions (paper): every cranium-layer node, plus all three layers under
+/// the face's **outer** border (the longest boundary loop). Eye and mouth rims stay free.
+pub fn default_fixed_nodes(surface: &Mesh) -> Vec<bool> {
+    let n = surface.vertex_count();
+    let mut fixed = vec![false; 3 * n];
+    fixed[2 * n..].iter_mut().for_each(|f| *f = true);
+    let loops = crate::generic_face::boundary_loops(surface);
+    if let Some(outer) = loops.iter().max_by_key(|l| l.len()) {
+        for &v in outer {
+            for layer in 0..3 {
+                fixed[layer * n + v as usize] = true;
+            }
+        }
+    }
+    fixed
+}
+
+/// `[DVec3]` → `[x0, y0, z0, x1, …]`.
+pub fn flatten(v: &[DVec3]) -> Vec<f64> {
+    v.iter().flat_map(|p| p.to_array()).collect()
+}
+
+/// `[x0, y0, z0, x1, …]` → `[DVec3]`.
+pub fn unflatten(v: &[f64]) -> Vec<DVec3> {
+    v.chunks_exact(3)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect()
+}

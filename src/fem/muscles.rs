@@ -1,0 +1,276 @@
+//! The 18 linear muscles (9 left/right pairs after Waters' classic set), defined **relative to
+//! the 13 feature points** so they follow any registered face.
+//!
+//! A muscle's insertion (skin end) and origin (bone end) are each an [`Anchor`]: a feature
+//! point plus an offset in the **face frame** of that face's own landmarks:
+//!
+//! * `x̂` from the right to the left outer eye corner (the subject's left is +x),
+//! * `ŷ` from the chin towards the forehead, made orthogonal to `x̂`,
+//! * `ẑ = x̂ × ŷ`, out of the face;
+//! * offsets are in face units: x and z multiplied by half the outer-eye-corner distance
+//!   (≈ 48 mm on the generic face), y by the vertical distance from the mouth-corner line to
+//!   the inner-eye-corner line (≈ 67 mm).
+//!
+//! The asset stores one definition per pair for the subject's **left** side; the right muscle is
+//! its mirror image (feature point mirrored, x offset negated), so left/right stay symmetric on
+//! any face. Each anchor is first placed in the face plane (x, y), then snapped to the skin
+//! along `ẑ` (the forward-facing surface vertex nearest in the plane) and moved `z` face units
+//! along `ẑ` (negative: under the skin, as bone origins are). A muscle acts on the skin-surface nodes within `radius` of its insertion with the
+//! smooth fall-off weight `w = (1 − (d/r)²)²`; each node is pulled towards the origin with
+//! force `force_n · w / Σw`, so the muscle's total force at activation 1 is `force_n` newtons.
+
+use super::FaceModel;
+use crate::feature_points::FeaturePoint;
+use crate::{Error, FemError, Result};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The built-in muscle definitions (`assets/muscles.ron`).
+pub const BUILTIN_RON: &str = include_str!("../../assets/muscles.ron");
+
+/// A point given by a feature point and an offset in face units (see the module docs).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Anchor {
+    /// Feature-point name (`FeaturePoint::name`, e.g. `mouth_corner_left`).
+    pub point: String,
+    /// Offset `(x, y, z)` in face units.
+    #[serde(default)]
+    pub offset: [f64; 3],
+}
+
+/// One muscle pair's definition (left side; the right side is mirrored).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MuscleDef {
+    /// Pair name, snake_case; the muscles are `<name>_left` and `<name>_right`.
+    pub name: String,
+    /// What it does (for the editor's tooltips).
+    #[serde(default)]
+    pub description: String,
+    /// Skin end: the nodes around it are pulled.
+    pub insertion: Anchor,
+    /// Bone end: the pull points towards it.
+    pub origin: Anchor,
+    /// Fall-off radius around the insertion, in face units (× half the outer-eye distance).
+    pub radius: f64,
+    /// Total force at activation 1, N.
+    pub force_n: f64,
+}
+
+/// A set of muscle definitions as stored in RON.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MuscleSet {
+    pub muscles: Vec<MuscleDef>,
+}
+
+/// A muscle resolved on one face: its skin nodes and their forces at unit activation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Muscle {
+    /// `<pair>_left` or `<pair>_right`.
+    pub name: String,
+    pub insertion_mm: DVec3,
+    pub origin_mm: DVec3,
+    pub radius_mm: f64,
+    pub force_n: f64,
+    /// Volume node ids (skin surface layer) the muscle pulls.
+    pub nodes: Vec<u32>,
+    /// Fall-off weights of `nodes` (sum 1).
+    pub weights: Vec<f64>,
+    /// Force on each of `nodes` at activation 1, N.
+    pub forces_n: Vec<DVec3>,
+}
+
+impl Muscle {
+    /// The full nodal force field (one per volume node, N) at activation 1.
+    pub fn nodal_forces(&self, node_count: usize) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; node_count];
+        for (&n, &f) in self.nodes.iter().zip(&self.forces_n) {
+            out[n as usize] += f;
+        }
+        out
+    }
+}
+
+/// The face frame of a set of landmark positions (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaceFrame {
+    pub x: DVec3,
+    pub y: DVec3,
+    pub z: DVec3,
+    /// mm per face unit along x and z.
+    pub scale_xz_mm: f64,
+    /// mm per face unit along y.
+    pub scale_y_mm: f64,
+}
+
+impl FaceFrame {
+    /// The frame of landmarks given as `position(FeaturePoint)`.
+    pub fn new(position: impl Fn(FeaturePoint) -> DVec3) -> Result<Self> {
+        let eyes = position(FeaturePoint::OuterEyeLeft) - position(FeaturePoint::OuterEyeRight);
+        let up = position(FeaturePoint::Forehead) - position(FeaturePoint::Chin);
+        let x = eyes.normalize_or_zero();
+        let y = (up - x * up.dot(x)).normalize_or_zero();
+        let inner =
+            (position(FeaturePoint::InnerEyeLeft) + position(FeaturePoint::InnerEyeRight)) * 0.5;
+        let mouth = (position(FeaturePoint::MouthCornerLeft)
+            + position(FeaturePoint::MouthCornerRight))
+            * 0.5;
+        let scale_y_mm = (inner - mouth).dot(y);
+        let scale_xz_mm = eyes.length() * 0.5;
+        if x == DVec3::ZERO || y == DVec3::ZERO || !(scale_y_mm > 1.0) || !(scale_xz_mm > 1.0) {
+            return Err(FemError::Definition(
+                "feature points do not span a face frame (eyes, chin/forehead, mouth coincide or are upside down)".into(),
+            )
+            .into());
+        }
+        Ok(FaceFrame {
+            x,
+            y,
+            z: x.cross(y),
+            scale_xz_mm,
+            scale_y_mm,
+        })
+    }
+
+    /// The offset vector (mm) of face-unit offsets.
+    pub fn offset_mm(&self, offset: [f64; 3]) -> DVec3 {
+        self.x * offset[0] * self.scale_xz_mm
+            + self.y * offset[1] * self.scale_y_mm
+            + self.z * offset[2] * self.scale_xz_mm
+    }
+}
+
+impl MuscleSet {
+    /// The built-in 9 pairs = 18 muscles.
+    pub fn builtin() -> Self {
+        Self::parse(BUILTIN_RON, Path::new("assets/muscles.ron"))
+            .expect("built-in muscles.ron parses")
+    }
+
+    /// Parses RON text (`path` only names it in errors) and validates it.
+    pub fn parse(text: &str, path: &Path) -> Result<Self> {
+        let set: MuscleSet = ron::from_str(text)
+            .map_err(|e| Error::syntax(path, e.span.start.line, e.code.to_string()))?;
+        for def in &set.muscles {
+            for anchor in [&def.insertion, &def.origin] {
+                if FeaturePoint::from_name(&anchor.point).is_none() {
+                    return Err(Error::invalid(
+                        path,
+                        format!(
+                            "muscle `{}`: unknown feature point `{}`",
+                            def.name, anchor.point
+                        ),
+                    ));
+                }
+            }
+            if !(def.radius > 0.0 && def.radius.is_finite() && def.force_n.is_finite()) {
+                return Err(Error::invalid(
+                    path,
+                    format!(
+                        "muscle `{}`: radius must be > 0 and force_n finite",
+                        def.name
+                    ),
+                ));
+            }
+        }
+        Ok(set)
+    }
+
+    /// Reads a user muscle file (RON).
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// Muscle names in model order: per pair, left then right.
+    pub fn names(&self) -> Vec<String> {
+        self.muscles
+            .iter()
+            .flat_map(|d| [format!("{}_left", d.name), format!("{}_right", d.name)])
+            .collect()
+    }
+
+    /// Resolves every muscle on `model`'s surface (left then right per pair).
+    pub fn resolve(&self, model: &FaceModel) -> Result<Vec<Muscle>> {
+        let surface = &model.surface;
+        let position =
+            |p: FeaturePoint| surface.positions_mm[model.feature_vertices[p.index()] as usize];
+        let frame = FaceFrame::new(position)?;
+        let fixed = model.fixed_nodes();
+        let mut out = Vec::with_capacity(2 * self.muscles.len());
+        for def in &self.muscles {
+            for mirrored in [false, true] {
+                let place = |a: &Anchor| {
+                    let mut p = FeaturePoint::from_name(&a.point).expect("validated");
+                    let mut offset = a.offset;
+                    if mirrored {
+                        p = p.mirror();
+                        offset[0] = -offset[0];
+                    }
+                    let target = position(p) + frame.offset_mm([offset[0], offset[1], 0.0]);
+                    snap_to_skin(surface, &frame, target) + frame.offset_mm([0.0, 0.0, offset[2]])
+                };
+                let insertion_mm = place(&def.insertion);
+                let origin_mm = place(&def.origin);
+                let radius_mm = def.radius * frame.scale_xz_mm;
+                let mut nodes = Vec::new();
+                let mut weights = Vec::new();
+                for (v, p) in surface.positions_mm.iter().enumerate() {
+                    let d = (*p - insertion_mm).length();
+                    if d < radius_mm && !fixed[v] {
+                        let t = d / radius_mm;
+                        nodes.push(v as u32);
+                        weights.push((1.0 - t * t).powi(2));
+                    }
+                }
+                let total: f64 = weights.iter().sum();
+                let side = if mirrored { "right" } else { "left" };
+                let name = format!("{}_{side}", def.name);
+                if !(total > 0.0) {
+                    return Err(FemError::Definition(format!(
+                        "muscle `{name}`: no free skin node within {radius_mm:.1} mm of its insertion"
+                    ))
+                    .into());
+                }
+                weights.iter_mut().for_each(|w| *w /= total);
+                let forces_n = nodes
+                    .iter()
+                    .zip(&weights)
+                    .map(|(&v, &w)| {
+                        (origin_mm - surface.positions_mm[v as usize]).normalize_or_zero()
+                            * (def.force_n * w)
+                    })
+                    .collect();
+                out.push(Muscle {
+                    name,
+                    insertion_mm,
+                    origin_mm,
+                    radius_mm,
+                    force_n: def.force_n,
+                    nodes,
+                    weights,
+                    forces_n,
+                });
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// The skin point "under" `target` seen along the face's forward axis: the forward-facing
+/// surface vertex closest to `target` in the face plane.
+fn snap_to_skin(surface: &crate::Mesh, frame: &FaceFrame, target: DVec3) -> DVec3 {
+    let mut best = (f64::INFINITY, target);
+    for (p, n) in surface.positions_mm.iter().zip(&surface.normals) {
+        if n.dot(frame.z) < 0.2 {
+            continue;
+        }
+        let d = *p - target;
+        let in_plane = d - frame.z * d.dot(frame.z);
+        let dist = in_plane.length_squared();
+        if dist < best.0 {
+            best = (dist, *p);
+        }
+    }
+    best.1
+}
