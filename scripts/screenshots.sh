@@ -19,3 +19,8 @@ run() {
 run generic
 run cara1_plain "$scan"
 run cara1_denoise "$scan" --denoise --show denoise
+run generic_happiness --expression happiness --muscles --show displacement
+run generic_cutaway --expression broad_smile --layers cutaway --yaw 40 --pitch 10
+for e in sadness surprise anger disgust fear scorn pain; do
+  run "generic_$e" --expression "$e" --show displacement
+done

@@ -105,6 +105,7 @@ struct MarkerOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) offset: vec2<f32>,
     @location(1) colour: vec4<f32>,
+    @location(2) centre: vec3<f32>,
 };
 
 @vertex
@@ -123,13 +124,14 @@ fn vs_marker(@builtin(vertex_index) i: u32, m: MarkerIn) -> MarkerOut {
     out.clip = clip;
     out.offset = c;
     out.colour = m.colour;
+    out.centre = m.centre;
     return out;
 }
 
 @fragment
 fn fs_marker(f: MarkerOut) -> @location(0) vec4<f32> {
     let r2 = dot(f.offset, f.offset);
-    if (r2 > 1.0) {
+    if (r2 > 1.0 || clipped(f.centre)) {
         discard;
     }
     // Dark rim so markers read on any colour map.

@@ -155,6 +155,36 @@ pub struct ViewArgs {
     /// What the viewport colours by (default: chosen from what was computed).
     #[arg(long, value_enum)]
     pub show: Option<Overlay>,
+    /// Build the layered FEM face (on the registered face if --register, else the generic).
+    #[arg(long)]
+    pub fem: bool,
+    /// Apply an expression preset (implies --fem), e.g. `happiness`.
+    #[arg(long, value_name = "NAME")]
+    pub expression: Option<String>,
+    /// Which FEM layers to draw.
+    #[arg(long, value_enum)]
+    pub layers: Option<LayersShown>,
+    /// Draw the 18 muscles as arrows (insertion towards origin, length ∝ force).
+    #[arg(long)]
+    pub muscles: bool,
+    /// Camera turn about the vertical axis, degrees (positive: towards the subject's left).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub yaw: f64,
+    /// Camera elevation, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub pitch: f64,
+}
+
+/// FEM layers drawn in the viewport.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayersShown {
+    /// The skin surface only.
+    Skin,
+    /// Skin, fat/skin interface and cranium surfaces with the hexahedra's edges.
+    All,
+    /// All layers cut by a sagittal plane left of the midline, so the hexahedra show through
+    /// the thickness.
+    Cutaway,
 }
 
 /// Per-vertex colouring of the viewport.
@@ -167,6 +197,8 @@ pub enum Overlay {
     Denoise,
     /// Registered generic face over the scan, coloured by its distance to the scan (mm).
     Registration,
+    /// The FEM face coloured by the expression's displacement magnitude (mm).
+    Displacement,
 }
 
 /// Runs a parsed command line.

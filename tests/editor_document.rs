@@ -5,15 +5,21 @@
 mod common;
 
 use facesynth::app::document::{Command, Document};
-use facesynth::app::worker::run_job;
+use facesynth::app::worker::WorkerState;
 use facesynth::feature_points::FeaturePoint;
 use facesynth::generic_face;
 use glam::DVec3;
 
 /// Applies a command and runs the jobs it starts to completion.
 fn apply(doc: &mut Document, command: Command) {
-    for job in doc.apply(command) {
-        doc.receive(run_job(job));
+    apply_with(&mut WorkerState::default(), doc, command);
+}
+
+/// The same with a worker state kept between commands (the FEM model lives there).
+fn apply_with(worker: &mut WorkerState, doc: &mut Document, command: Command) {
+    let mut jobs: std::collections::VecDeque<_> = doc.apply(command).into();
+    while let Some(job) = jobs.pop_front() {
+        jobs.extend(doc.receive(worker.run(job)));
     }
     assert!(!doc.busy(), "every job answered");
 }
@@ -130,4 +136,115 @@ fn commands_that_need_a_scan_say_so_instead_of_failing_silently() {
         Command::ExportRegistered("/nonexistent/x.obj".into()),
     );
     assert!(doc.error.is_some());
+}
+
+/// Mean skin displacement (mm) of the document's current expression.
+fn mean_displacement(doc: &Document) -> f64 {
+    let fem = doc.fem.as_ref().expect("FEM built");
+    let n = fem.surface.vertex_count();
+    let u = fem.displacement(&doc.edits.activations);
+    u[..n].iter().map(|d| d.length()).sum::<f64>() / n as f64
+}
+
+#[test]
+fn fem_editing_softer_skin_moves_more_undo_restores_and_presets_round_trip() {
+    let mut worker = WorkerState::default();
+    let mut doc = Document::new(generic_face::build());
+    apply_with(&mut worker, &mut doc, Command::BuildFem);
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    let fem = doc.fem.as_ref().expect("built");
+    assert_eq!(fem.muscles.len(), 18);
+    apply_with(
+        &mut worker,
+        &mut doc,
+        Command::ApplyPreset("happiness".into()),
+    );
+    let stiff = mean_displacement(&doc);
+    assert!(stiff > 0.05, "a smile moves the face: {stiff} mm");
+
+    // Softer skin: the worker refactors with the cached pattern and the face moves more.
+    let mut soft = doc.edits.fem;
+    soft.skin.young_modulus_pa /= 4.0;
+    apply_with(&mut worker, &mut doc, Command::Checkpoint);
+    apply_with(&mut worker, &mut doc, Command::SetFemParams(soft));
+    let fem = doc.fem.as_ref().unwrap();
+    assert!(
+        fem.last_update.contains("refactored"),
+        "{}",
+        fem.last_update
+    );
+    let softer = mean_displacement(&doc);
+    assert!(softer > stiff * 1.2, "E/4: {softer} vs {stiff} mm");
+
+    // Undo brings the paper's modulus back and re-solves.
+    apply_with(&mut worker, &mut doc, Command::Undo);
+    assert_eq!(doc.edits.fem.skin.young_modulus_pa, 5600.0);
+    let again = mean_displacement(&doc);
+    assert!(
+        (again - stiff).abs() < 1e-9 * stiff.max(1.0),
+        "{again} vs {stiff}"
+    );
+
+    // Store the current activations as a preset, save all presets, load them into a fresh
+    // document: the same expression comes back.
+    apply_with(
+        &mut worker,
+        &mut doc,
+        Command::StorePreset {
+            name: "my_smile".into(),
+            description: "test".into(),
+        },
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("presets.ron");
+    apply_with(&mut worker, &mut doc, Command::SavePresets(file.clone()));
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    let saved = doc.edits.activations.clone();
+
+    let mut other = Document::new(generic_face::build());
+    let mut w2 = WorkerState::default();
+    apply_with(&mut w2, &mut other, Command::BuildFem);
+    apply_with(&mut w2, &mut other, Command::LoadPresets(file));
+    apply_with(&mut w2, &mut other, Command::ApplyPreset("my_smile".into()));
+    assert_eq!(other.edits.activations, saved);
+}
+
+#[test]
+fn mirrored_muscles_give_mirrored_skin_motion_on_the_symmetric_generic_face() {
+    let mut worker = WorkerState::default();
+    let mut doc = Document::new(generic_face::build());
+    apply_with(&mut worker, &mut doc, Command::BuildFem);
+    let pos = doc.fem.as_ref().unwrap().surface.positions_mm.clone();
+    let disp = |doc: &Document, side: &str| {
+        let mut a = std::collections::BTreeMap::new();
+        a.insert(format!("zygomatic_major_{side}"), 1.0);
+        doc.fem.as_ref().unwrap().displacement(&a)
+    };
+    let left = disp(&doc, "left");
+    let right = disp(&doc, "right");
+    // Vertex mirror map by position (x → −x).
+    let mut worst: f64 = 0.0;
+    let mut peak: f64 = 0.0;
+    for (i, p) in pos.iter().enumerate() {
+        let m = glam::DVec3::new(-p.x, p.y, p.z);
+        let j = (0..pos.len())
+            .min_by(|&a, &b| {
+                pos[a]
+                    .distance_squared(m)
+                    .total_cmp(&pos[b].distance_squared(m))
+            })
+            .unwrap();
+        if pos[j].distance(m) > 1e-6 {
+            continue;
+        }
+        let mirrored = glam::DVec3::new(-right[j].x, right[j].y, right[j].z);
+        worst = worst.max((left[i] - mirrored).length());
+        peak = peak.max(left[i].length());
+    }
+    assert!(peak > 1.0, "the muscle moves the skin: {peak} mm");
+    assert!(worst < 1e-6 * peak.max(1.0) + 1e-9, "asymmetry {worst} mm");
+    // The left zygomatic moves the subject's left (+x) mouth corner, not the right.
+    let mc_left = doc.generic.feature_vertex(FeaturePoint::MouthCornerLeft) as usize;
+    let mc_right = doc.generic.feature_vertex(FeaturePoint::MouthCornerRight) as usize;
+    assert!(left[mc_left].length() > 5.0 * left[mc_right].length());
 }

@@ -7,11 +7,16 @@ use super::undo::History;
 use super::worker::{Job, JobResult};
 use crate::denoise::{DenoiseParams, DenoiseReport};
 use crate::feature_points::{FeaturePoint, Landmarks};
+use crate::fem::expressions::{Expression, ExpressionSet};
+use crate::fem::layers::ElementQuality;
+use crate::fem::muscles::{Muscle, MuscleSet};
+use crate::fem::{FemParams, HexMesh, Timings};
 use crate::generic_face::GenericFace;
 use crate::mesh::FaceCounts;
 use crate::registration::RegistrationResult;
 use crate::{Mesh, io};
 use glam::DVec3;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -50,11 +55,97 @@ pub struct RegistrationState {
     pub landmarks: Landmarks,
 }
 
+/// The solved layered face model as the UI needs it: rest geometry, the muscle basis, and the
+/// figures. The factorization itself stays with the worker.
+#[derive(Debug, Clone)]
+pub struct FemState {
+    /// Rest geometry of the volume (node layer k of surface vertex v is node k·n + v).
+    pub volume: Arc<HexMesh>,
+    /// The skin surface at rest (generic or registered face).
+    pub surface: Arc<Mesh>,
+    pub muscles: Vec<Muscle>,
+    /// Per muscle (same order): displacement of every volume node at activation 1, mm.
+    pub basis: Arc<Vec<Vec<DVec3>>>,
+    pub fixed: Vec<bool>,
+    pub params: FemParams,
+    pub muscle_set: MuscleSet,
+    pub dofs: usize,
+    pub quality: ElementQuality,
+    pub timings: Timings,
+    /// What the last worker update did ("built", "refactored", "muscles re-solved").
+    pub last_update: String,
+    /// Wall time of the last worker update, ms.
+    pub millis: f64,
+    /// Which surface it was built on (see [`Document::fem_surface_id`]).
+    pub surface_id: u64,
+}
+
+impl FemState {
+    /// The activation vector in model order for a name → activation map (missing: 0).
+    pub fn activation_vector(&self, activations: &BTreeMap<String, f64>) -> Vec<f64> {
+        self.muscles
+            .iter()
+            .map(|m| activations.get(&m.name).copied().unwrap_or(0.0))
+            .collect()
+    }
+
+    /// `u = Σ a_i u_i` at every volume node (the slider update: no solve), mm.
+    pub fn displacement(&self, activations: &BTreeMap<String, f64>) -> Vec<DVec3> {
+        let a = self.activation_vector(activations);
+        let mut out = vec![DVec3::ZERO; self.volume.nodes_mm.len()];
+        for (ai, basis) in a.iter().zip(self.basis.iter()) {
+            if *ai == 0.0 {
+                continue;
+            }
+            for (o, b) in out.iter_mut().zip(basis) {
+                *o += *b * *ai;
+            }
+        }
+        out
+    }
+
+    /// The skin surface deformed by `activations` (normals recomputed).
+    pub fn deformed_surface(&self, activations: &BTreeMap<String, f64>) -> Mesh {
+        let u = self.displacement(activations);
+        let positions = self
+            .surface
+            .positions_mm
+            .iter()
+            .zip(&u)
+            .map(|(p, d)| *p + *d)
+            .collect();
+        Mesh::new(positions, self.surface.faces.clone())
+    }
+}
+
 /// The part of the document that undo/redo restores.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Edits {
     /// The scan's 13 feature points (or the generic face's when no scan is loaded).
     pub landmarks: Option<Landmarks>,
+    /// Layer thicknesses and materials of the FEM model.
+    pub fem: FemParams,
+    /// Muscle definitions (force magnitudes, insertion/origin anchors).
+    pub muscles: MuscleSet,
+    /// Muscle activations by muscle name (`zygomatic_major_left`, …); missing = 0.
+    pub activations: BTreeMap<String, f64>,
+    /// Expression presets (built-in + loaded + saved from the editor).
+    pub presets: ExpressionSet,
+    /// The preset last applied (for "revert").
+    pub applied_preset: Option<String>,
+}
+
+impl Default for Edits {
+    fn default() -> Self {
+        Edits {
+            landmarks: None,
+            fem: FemParams::default(),
+            muscles: MuscleSet::builtin(),
+            activations: BTreeMap::new(),
+            presets: ExpressionSet::builtin(),
+            applied_preset: None,
+        }
+    }
 }
 
 /// What a panel or the command line asks the document to do.
@@ -74,6 +165,35 @@ pub enum Command {
     Register,
     /// Write the registered generic face (.obj/.ply).
     ExportRegistered(PathBuf),
+    /// Build (or rebuild) the layered FEM model on the registered face, or the generic face.
+    BuildFem,
+    /// Store the current edits as one undo step (sent when a slider drag starts).
+    Checkpoint,
+    /// New materials / layer thicknesses: the worker refactors (or re-extrudes).
+    SetFemParams(FemParams),
+    /// New muscle definitions: the worker re-solves the basis with the cached factor.
+    SetMuscles(MuscleSet),
+    /// New activations: an 18-term sum on the UI thread, no solve.
+    SetActivations(BTreeMap<String, f64>),
+    /// Set the activations to a preset's.
+    ApplyPreset(String),
+    /// Activations = Σ weight × preset activations.
+    BlendPresets(Vec<(String, f64)>),
+    /// Back to the preset last applied (or neutral).
+    RevertActivations,
+    /// Store the current activations as a new (or replaced) preset.
+    StorePreset {
+        name: String,
+        description: String,
+    },
+    /// Write the presets to a RON file (atomic).
+    SavePresets(PathBuf),
+    /// Add the presets of a RON file.
+    LoadPresets(PathBuf),
+    /// Write the current expression's skin surface (.obj/.ply).
+    ExportExpression(PathBuf),
+    /// Write every preset's surface into a folder (`<name>.obj`, plus `neutral.obj`).
+    ExportAllExpressions(PathBuf),
     Undo,
     Redo,
 }
@@ -84,6 +204,13 @@ pub struct Document {
     pub scan: Option<ScanState>,
     pub denoised: Option<DenoiseState>,
     pub registration: Option<RegistrationState>,
+    pub fem: Option<FemState>,
+    /// The FEM inputs changed while a solve was running: send again when it returns.
+    fem_dirty: bool,
+    /// The user asked for the FEM model (it then follows every edit).
+    fem_enabled: bool,
+    /// Bumped on every registration, so the FEM model knows its surface changed.
+    registration_count: u64,
     pub edits: Edits,
     pub history: History<Edits>,
     /// Bumped whenever a mesh or overlay changes, so the viewport re-uploads.
@@ -104,7 +231,14 @@ impl Document {
             scan: None,
             denoised: None,
             registration: None,
-            edits: Edits { landmarks },
+            fem: None,
+            fem_dirty: false,
+            fem_enabled: false,
+            registration_count: 0,
+            edits: Edits {
+                landmarks,
+                ..Edits::default()
+            },
             history: History::new(200),
             version: 0,
             pending: Vec::new(),
@@ -151,7 +285,11 @@ impl Document {
                     self.edits.landmarks = Some(self.generic.landmarks());
                     self.history.clear();
                     self.version += 1;
-                    Vec::new()
+                    if self.fem.as_ref().is_some_and(|f| f.surface_id != 0) {
+                        self.fem_job()
+                    } else {
+                        Vec::new()
+                    }
                 }
             },
             Command::Denoise(params) => match &self.scan {
@@ -228,21 +366,227 @@ impl Document {
                 }
                 Vec::new()
             }
-            Command::Undo => {
-                if let Some(previous) = self.history.undo(&self.edits) {
-                    self.edits = previous;
+            Command::BuildFem => {
+                self.fem_enabled = true;
+                self.fem_job()
+            }
+            Command::Checkpoint => {
+                self.history.checkpoint(&self.edits);
+                Vec::new()
+            }
+            Command::SetFemParams(params) => {
+                self.edits.fem = params;
+                self.fem_job()
+            }
+            Command::SetMuscles(muscles) => {
+                self.edits.muscles = muscles;
+                self.fem_job()
+            }
+            Command::SetActivations(a) => {
+                self.edits.activations = a;
+                self.version += 1;
+                Vec::new()
+            }
+            Command::ApplyPreset(name) => match self.preset_activations(&name) {
+                Ok(a) => {
+                    self.history.checkpoint(&self.edits);
+                    self.edits.activations = a;
+                    self.edits.applied_preset = Some(name);
                     self.version += 1;
+                    Vec::new()
+                }
+                Err(e) => self.fail(e),
+            },
+            Command::BlendPresets(weights) => {
+                let mut out: BTreeMap<String, f64> = BTreeMap::new();
+                for (name, w) in &weights {
+                    match self.preset_activations(name) {
+                        Ok(a) => {
+                            for (k, v) in a {
+                                *out.entry(k).or_default() += w * v;
+                            }
+                        }
+                        Err(e) => return self.fail(e),
+                    }
+                }
+                self.edits.activations = out;
+                self.version += 1;
+                Vec::new()
+            }
+            Command::RevertActivations => {
+                self.history.checkpoint(&self.edits);
+                self.edits.activations = match self.edits.applied_preset.clone() {
+                    Some(name) => self.preset_activations(&name).unwrap_or_default(),
+                    None => BTreeMap::new(),
+                };
+                self.version += 1;
+                Vec::new()
+            }
+            Command::StorePreset { name, description } => {
+                let name = name.trim().to_string();
+                if name.is_empty() {
+                    return self.fail("a preset needs a name");
+                }
+                self.history.checkpoint(&self.edits);
+                let activations = self
+                    .edits
+                    .activations
+                    .iter()
+                    .filter(|(_, a)| **a != 0.0)
+                    .map(|(k, a)| (k.clone(), *a))
+                    .collect();
+                self.edits.presets.merge(ExpressionSet {
+                    expressions: vec![Expression {
+                        name: name.clone(),
+                        description,
+                        action_units: Vec::new(),
+                        activations,
+                    }],
+                });
+                self.edits.applied_preset = Some(name.clone());
+                self.status = Some(format!("stored preset {name}"));
+                Vec::new()
+            }
+            Command::SavePresets(path) => {
+                let pretty = ron::ser::PrettyConfig::new();
+                match ron::ser::to_string_pretty(&self.edits.presets, pretty) {
+                    Ok(text) => match io::write_text_atomic(&path, &(text + "\n")) {
+                        Ok(()) => self.status = Some(format!("saved {}", path.display())),
+                        Err(e) => self.error = Some(e.to_string()),
+                    },
+                    Err(e) => self.error = Some(format!("{}: {e}", path.display())),
                 }
                 Vec::new()
+            }
+            Command::LoadPresets(path) => match ExpressionSet::load(&path) {
+                Ok(set) => {
+                    self.history.checkpoint(&self.edits);
+                    self.edits.presets.merge(set);
+                    self.status = Some(format!("loaded {}", path.display()));
+                    Vec::new()
+                }
+                Err(e) => self.fail(e.to_string()),
+            },
+            Command::ExportExpression(path) => {
+                let Some(fem) = &self.fem else {
+                    return self.fail("build the FEM model first");
+                };
+                let mesh = fem.deformed_surface(&self.edits.activations);
+                match io::write_mesh(&path, &mesh) {
+                    Ok(()) => self.status = Some(format!("wrote {}", path.display())),
+                    Err(e) => self.error = Some(e.to_string()),
+                }
+                Vec::new()
+            }
+            Command::ExportAllExpressions(dir) => {
+                let Some(fem) = &self.fem else {
+                    return self.fail("build the FEM model first");
+                };
+                if let Err(e) = std::fs::create_dir_all(&dir) {
+                    return self.fail(format!("{}: cannot create: {e}", dir.display()));
+                }
+                let mut written = 0;
+                let neutral = (*fem.surface).clone();
+                if let Err(e) = io::write_mesh(&dir.join("neutral.obj"), &neutral) {
+                    return self.fail(e.to_string());
+                }
+                for name in self.edits.presets.names() {
+                    let a = match self.preset_activations(name) {
+                        Ok(a) => a,
+                        Err(e) => return self.fail(e),
+                    };
+                    let mesh = fem.deformed_surface(&a);
+                    if let Err(e) = io::write_mesh(&dir.join(format!("{name}.obj")), &mesh) {
+                        return self.fail(e.to_string());
+                    }
+                    written += 1;
+                }
+                self.status = Some(format!("wrote {written} expressions to {}", dir.display()));
+                Vec::new()
+            }
+            Command::Undo => {
+                if let Some(previous) = self.history.undo(&self.edits) {
+                    self.restore(previous)
+                } else {
+                    Vec::new()
+                }
             }
             Command::Redo => {
                 if let Some(next) = self.history.redo(&self.edits) {
-                    self.edits = next;
-                    self.version += 1;
+                    self.restore(next)
+                } else {
+                    Vec::new()
                 }
-                Vec::new()
             }
         }
+    }
+
+    /// Restores an undo/redo snapshot; the FEM model follows changed materials or muscles.
+    fn restore(&mut self, edits: Edits) -> Vec<Job> {
+        let fem_changed = edits.fem != self.edits.fem || edits.muscles != self.edits.muscles;
+        self.edits = edits;
+        self.version += 1;
+        if fem_changed {
+            self.fem_job()
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// Which surface the FEM model is built on: 0 = the generic face, else the registration.
+    pub fn fem_surface_id(&self) -> u64 {
+        if self.registration.is_some() {
+            self.registration_count
+        } else {
+            0
+        }
+    }
+
+    /// The FEM job for the current inputs, or none while one is running (it is sent again
+    /// when that one returns: slider drags do not queue up stale solves).
+    fn fem_job(&mut self) -> Vec<Job> {
+        if !self.fem_enabled {
+            return Vec::new();
+        }
+        if self.pending.contains(&"solving") {
+            self.fem_dirty = true;
+            return Vec::new();
+        }
+        self.fem_dirty = false;
+        let (surface, feature_vertices) = match &self.registration {
+            Some(r) => (
+                Arc::new(r.result.mesh.clone()),
+                self.generic.feature_vertices,
+            ),
+            None => (
+                Arc::new(self.generic.mesh.clone()),
+                self.generic.feature_vertices,
+            ),
+        };
+        self.pending.push("solving");
+        vec![Job::Fem {
+            surface,
+            surface_id: self.fem_surface_id(),
+            feature_vertices,
+            params: self.edits.fem,
+            muscles: self.edits.muscles.clone(),
+        }]
+    }
+
+    /// A preset's activations by muscle name (pair names expanded to both sides).
+    fn preset_activations(&self, name: &str) -> Result<BTreeMap<String, f64>, String> {
+        let preset = self
+            .edits
+            .presets
+            .get(name)
+            .ok_or_else(|| format!("no preset named `{name}`"))?;
+        let names = self.edits.muscles.names();
+        let a = preset.activations_for(&names).map_err(|e| e.to_string())?;
+        Ok(names
+            .into_iter()
+            .zip(a)
+            .filter(|(_, a)| *a != 0.0)
+            .collect())
     }
 
     fn fail(&mut self, message: impl Into<String>) -> Vec<Job> {
@@ -250,12 +594,14 @@ impl Document {
         Vec::new()
     }
 
-    /// Takes one worker result. A failure keeps the previous state and shows the error.
-    pub fn receive(&mut self, result: JobResult) {
+    /// Takes one worker result; returns follow-up jobs. A failure keeps the previous state
+    /// (the last good solution stays on screen) and shows the error.
+    pub fn receive(&mut self, result: JobResult) -> Vec<Job> {
         let what = match &result {
             JobResult::Loaded(_) => "loading",
             JobResult::Denoised(_) => "denoising",
             JobResult::Registered(_) => "registering",
+            JobResult::Fem(_) => "solving",
         };
         if let Some(i) = self.pending.iter().position(|p| *p == what) {
             self.pending.remove(i);
@@ -265,6 +611,7 @@ impl Document {
                 self.scan = Some(*scan);
                 self.denoised = None;
                 self.registration = None;
+                self.fem_dirty |= self.fem.as_ref().is_some_and(|f| f.surface_id != 0);
                 // A new scan's feature points are unknown until detected, loaded or placed.
                 self.edits.landmarks = None;
                 self.history.clear();
@@ -276,13 +623,26 @@ impl Document {
             }
             JobResult::Registered(Ok(r)) => {
                 self.registration = Some(*r);
+                self.registration_count += 1;
+                self.version += 1;
+                // The FEM model follows the new face.
+                self.fem_dirty |= self.fem_enabled;
+            }
+            JobResult::Fem(Ok(f)) => {
+                self.fem = Some(*f);
                 self.version += 1;
             }
             JobResult::Loaded(Err(e))
             | JobResult::Denoised(Err(e))
-            | JobResult::Registered(Err(e)) => {
+            | JobResult::Registered(Err(e))
+            | JobResult::Fem(Err(e)) => {
                 self.error = Some(e);
             }
+        }
+        if self.fem_dirty {
+            self.fem_job()
+        } else {
+            Vec::new()
         }
     }
 }

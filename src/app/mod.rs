@@ -74,6 +74,58 @@ pub struct ViewOptions {
     pub scan_opacity: f32,
     /// Mark the vertices the denoising filter moved by more than 2 mm.
     pub show_spikes: bool,
+    /// How the FEM model is drawn.
+    pub layers: LayerView,
+}
+
+/// What of the layered FEM face is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct LayerView {
+    /// Show the FEM face (deformed by the current activations) when one is built.
+    pub show_fem: bool,
+    pub skin: bool,
+    /// The skin/fat interface (middle node layer).
+    pub fat: bool,
+    /// The cranium (bottom node layer, fixed).
+    pub cranium: bool,
+    /// Edges of the hexahedra (polygon edges of each layer and the edges through it).
+    pub hex_edges: bool,
+    /// Clip everything at `x > cut_x_mm` (scan/face frame) to see through the thickness.
+    pub cutaway: bool,
+    pub cut_x_mm: f32,
+    /// Muscles as arrows from insertion towards origin, length ∝ force × activation.
+    pub muscles: bool,
+}
+
+impl Default for LayerView {
+    fn default() -> Self {
+        LayerView {
+            show_fem: true,
+            skin: true,
+            fat: false,
+            cranium: false,
+            hex_edges: false,
+            cutaway: false,
+            cut_x_mm: -8.0,
+            muscles: false,
+        }
+    }
+}
+
+impl LayerView {
+    fn from_args(shown: crate::cli::LayersShown, muscles: bool) -> Self {
+        use crate::cli::LayersShown::*;
+        let all = shown != Skin;
+        LayerView {
+            fat: all,
+            cranium: all,
+            hex_edges: all,
+            cutaway: shown == Cutaway,
+            muscles,
+            ..LayerView::default()
+        }
+    }
 }
 
 impl Default for ViewOptions {
@@ -88,6 +140,7 @@ impl Default for ViewOptions {
             show_scan: true,
             scan_opacity: 0.45,
             show_spikes: true,
+            layers: LayerView::default(),
         }
     }
 }
@@ -124,6 +177,18 @@ pub struct EditorApp {
     /// The feature point the next click on the surface places.
     picking: Option<FeaturePoint>,
     denoise_params: crate::denoise::DenoiseParams,
+    /// Materials being dragged (sent to the worker on release).
+    fem_draft: Option<crate::fem::FemParams>,
+    /// Muscle definitions being edited (sent on release).
+    muscle_draft: Option<crate::fem::muscles::MuscleSet>,
+    /// Activation sliders move both sides of a pair together.
+    mirror_muscles: bool,
+    /// Name for "store as preset".
+    preset_name: String,
+    /// Weights of the blend sliders.
+    blend: std::collections::BTreeMap<String, f64>,
+    /// Start with the landmark table open (closed when the script goes on to the FEM).
+    landmarks_open: bool,
     scene: Option<viewport_ui::SceneCache>,
     screenshot: Option<ScreenshotPlan>,
     outcome: Arc<Mutex<Option<String>>>,
@@ -140,6 +205,12 @@ impl EditorApp {
             _ => Settings::default(),
         };
         let mut view = settings.view;
+        if args.layers.is_some() || args.muscles {
+            view.layers = LayerView::from_args(
+                args.layers.unwrap_or(crate::cli::LayersShown::Skin),
+                args.muscles,
+            );
+        }
         view.overlay = args.show.unwrap_or(if args.register {
             Overlay::Registration
         } else if args.denoise {
@@ -147,6 +218,7 @@ impl EditorApp {
         } else {
             Overlay::Plain
         });
+        let (args_yaw, args_pitch) = (args.yaw, args.pitch);
         let mut app = EditorApp {
             worker: Worker::spawn(cc.egui_ctx.clone()),
             doc: Document::new(generic_face::build()),
@@ -158,6 +230,12 @@ impl EditorApp {
             script: script_from_args(&args),
             picking: None,
             denoise_params: Default::default(),
+            fem_draft: None,
+            muscle_draft: None,
+            mirror_muscles: true,
+            preset_name: "my_expression".into(),
+            blend: Default::default(),
+            landmarks_open: !(args.fem || args.expression.is_some()),
             scene: None,
             screenshot: args.screenshot.map(|path| ScreenshotPlan {
                 path,
@@ -172,18 +250,24 @@ impl EditorApp {
             app.camera = OrbitCamera::framing(lo, hi);
             app.framed_on = Some((lo, hi));
         }
+        app.camera.yaw_rad = args_yaw.to_radians();
+        app.camera.pitch_rad = args_pitch.to_radians();
         app
     }
 
     /// Applies queued commands and worker results (once per frame, before drawing).
     fn update_document(&mut self) {
         while let Some(result) = self.worker.try_recv() {
-            self.doc.receive(result);
+            for job in self.doc.receive(result) {
+                self.worker.send(job);
+            }
         }
         if let Some(scan) = &self.doc.scan
             && self.framed_on != Some(scan.bbox_mm)
         {
+            let (yaw, pitch) = (self.camera.yaw_rad, self.camera.pitch_rad);
             self.camera = OrbitCamera::framing(scan.bbox_mm.0, scan.bbox_mm.1);
+            (self.camera.yaw_rad, self.camera.pitch_rad) = (yaw, pitch);
             self.framed_on = Some(scan.bbox_mm);
         }
         // A scripted step waits until the previous one has finished; a failure stops the script.
@@ -292,6 +376,12 @@ fn script_from_args(args: &ViewArgs) -> VecDeque<Command> {
     }
     if args.register {
         script.push_back(Command::Register);
+    }
+    if args.fem || args.expression.is_some() {
+        script.push_back(Command::BuildFem);
+    }
+    if let Some(name) = &args.expression {
+        script.push_back(Command::ApplyPreset(name.clone()));
     }
     script
 }

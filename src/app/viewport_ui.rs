@@ -2,7 +2,7 @@
 //! labels and the colour legend. GPU meshes are rebuilt only when the document or the
 //! colouring changes, not per frame.
 
-use super::{EditorApp, feature_colour};
+use super::{EditorApp, LayerView, feature_colour};
 use crate::Mesh;
 use crate::cli::Overlay;
 use crate::mesh::pick::ray_hit;
@@ -17,9 +17,12 @@ use std::sync::Arc;
 const BACKGROUND: [f32; 4] = [0.045, 0.05, 0.065, 1.0];
 const SPIKE_COLOUR: [f32; 4] = [0.95, 0.2, 0.9, 1.0];
 
-/// Meshes of the current scene, built for the GPU once per (document version, colouring).
+/// Meshes of the current scene, built for the GPU once per (document version, view), not per
+/// frame.
 pub struct SceneCache {
-    key: (u64, Overlay, bool),
+    key: SceneKey,
+    /// Bumped on every rebuild: the renderer re-uploads changed meshes.
+    generation: u64,
     /// (id, data, role) — the role decides the draw style each frame.
     meshes: Vec<(u64, Arc<MeshData>, Role)>,
     legend: Option<ColourScale>,
@@ -28,13 +31,25 @@ pub struct SceneCache {
 }
 
 #[derive(Clone, Copy, PartialEq)]
+struct SceneKey {
+    version: u64,
+    overlay: Overlay,
+    show_original: bool,
+    layers: LayerView,
+}
+
+#[derive(Clone, Copy, PartialEq)]
 enum Role {
-    /// The main surface (scan, or generic face alone).
+    /// The main surface (scan, generic face alone, or the FEM skin).
     Main,
-    /// The scan drawn under the registered face.
+    /// The scan drawn under the registered or FEM face.
     Underlay,
     /// The registered generic face.
     Registered,
+    /// An inner FEM layer surface, drawn in its own colour.
+    Layer([f32; 3]),
+    /// Line-only items (hex edges through the thickness, muscle arrows).
+    Lines,
 }
 
 fn denoise_scale(displacement_mm: &[f64]) -> ColourScale {
@@ -55,74 +70,212 @@ fn registration_scale(distance_mm: &[f64]) -> ColourScale {
     }
 }
 
-fn build_scene(app: &EditorApp) -> SceneCache {
+const FAT_COLOUR: [f32; 3] = [0.95, 0.8, 0.35];
+const CRANIUM_COLOUR: [f32; 3] = [0.85, 0.85, 0.8];
+
+fn scene_key(app: &EditorApp) -> SceneKey {
+    SceneKey {
+        version: app.doc.version,
+        overlay: app.view.overlay,
+        show_original: app.view.show_original,
+        layers: app.view.layers,
+    }
+}
+
+fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
     let doc = &app.doc;
     let view = &app.view;
-    let key = (doc.version, view.overlay, view.show_original);
     let mut meshes = Vec::new();
     let mut legend = None;
     let pick_surface;
-    match &doc.scan {
-        None => {
+    let shown_scan = doc
+        .scan
+        .as_ref()
+        .map(|scan| match (&doc.denoised, view.show_original) {
+            (Some(d), false) => d.mesh.clone(),
+            _ => scan.mesh.clone(),
+        });
+    let fem = doc.fem.as_ref().filter(|_| {
+        view.layers.show_fem && matches!(view.overlay, Overlay::Plain | Overlay::Displacement)
+    });
+    let registered = doc
+        .registration
+        .as_ref()
+        .filter(|_| view.overlay == Overlay::Registration);
+    if let Some(fem) = fem {
+        let n = fem.surface.vertex_count();
+        let u = fem.displacement(&doc.edits.activations);
+        let layer_mesh = |k: usize| {
+            let positions = (0..n)
+                .map(|v| fem.volume.nodes_mm[k * n + v] + u[k * n + v])
+                .collect();
+            Mesh::new(positions, fem.surface.faces.clone())
+        };
+        let skin = Arc::new(layer_mesh(0));
+        if view.layers.skin {
+            let colours = (view.overlay == Overlay::Displacement).then(|| {
+                let magnitude: Vec<f64> = u[..n].iter().map(|d| d.length()).collect();
+                let scale = ColourScale::magnitude(&magnitude, 0.5, "displacement (mm)");
+                let c = scale.colours(&magnitude);
+                legend = Some(scale);
+                c
+            });
             meshes.push((
-                3,
-                Arc::new(MeshData::from_mesh(&doc.generic.mesh, None)),
+                10,
+                Arc::new(MeshData::from_mesh(&skin, colours.as_deref())),
                 Role::Main,
             ));
-            pick_surface = Some(Arc::new(doc.generic.mesh.clone()));
         }
-        Some(scan) => {
-            let shown = match (&doc.denoised, view.show_original) {
-                (Some(d), false) => d.mesh.clone(),
-                _ => scan.mesh.clone(),
-            };
-            let registered = doc
-                .registration
-                .as_ref()
-                .filter(|_| view.overlay == Overlay::Registration);
-            let mut colours = None;
-            if view.overlay == Overlay::Denoise
-                && let Some(d) = &doc.denoised
-            {
-                let scale = denoise_scale(&d.report.displacement_mm);
-                colours = Some(scale.colours(&d.report.displacement_mm));
-                legend = Some(scale);
-            }
-            let role = if registered.is_some() {
-                Role::Underlay
-            } else {
-                Role::Main
-            };
+        if view.layers.fat {
+            let m = layer_mesh(1);
             meshes.push((
-                1,
-                Arc::new(MeshData::from_mesh(&shown, colours.as_deref())),
-                role,
+                11,
+                Arc::new(MeshData::from_mesh(&m, None)),
+                Role::Layer(FAT_COLOUR),
             ));
-            pick_surface = Some(shown);
-            if let Some(r) = registered {
-                let scale = registration_scale(&r.distance_mm);
-                let colours = scale.colours(&r.distance_mm);
-                meshes.push((
-                    2,
-                    Arc::new(MeshData::from_mesh(&r.result.mesh, Some(&colours))),
-                    Role::Registered,
-                ));
-                legend = Some(scale);
+        }
+        if view.layers.cranium {
+            let m = layer_mesh(2);
+            meshes.push((
+                12,
+                Arc::new(MeshData::from_mesh(&m, None)),
+                Role::Layer(CRANIUM_COLOUR),
+            ));
+        }
+        let mut segments = Vec::new();
+        if view.layers.hex_edges {
+            // Edges through the thickness; the in-layer edges come with each layer's wireframe.
+            // With a cut-away only those next to the cut, which outline the hexahedra there.
+            let colour = [0.2, 0.25, 0.35, 0.8];
+            let cut = view.layers.cutaway.then(|| cut_plane_x(app, fem) as f64);
+            for v in 0..n {
+                if let Some(c) = cut
+                    && (fem.volume.nodes_mm[v].x - c).abs() > 3.0
+                {
+                    continue;
+                }
+                for k in 0..2 {
+                    let a = fem.volume.nodes_mm[k * n + v] + u[k * n + v];
+                    let b = fem.volume.nodes_mm[(k + 1) * n + v] + u[(k + 1) * n + v];
+                    segments.push((a.as_vec3().to_array(), b.as_vec3().to_array(), colour));
+                }
             }
         }
+        if view.layers.muscles {
+            segments.extend(muscle_arrows(fem, &doc.edits.activations, &u));
+        }
+        if !segments.is_empty() {
+            meshes.push((13, Arc::new(MeshData::lines(&segments)), Role::Lines));
+        }
+        if let Some(scan) = &shown_scan {
+            meshes.push((1, Arc::new(MeshData::from_mesh(scan, None)), Role::Underlay));
+        }
+        pick_surface = Some(shown_scan.clone().unwrap_or(skin));
+    } else if let Some(shown) = shown_scan {
+        let mut colours = None;
+        if view.overlay == Overlay::Denoise
+            && let Some(d) = &doc.denoised
+        {
+            let scale = denoise_scale(&d.report.displacement_mm);
+            colours = Some(scale.colours(&d.report.displacement_mm));
+            legend = Some(scale);
+        }
+        let role = if registered.is_some() {
+            Role::Underlay
+        } else {
+            Role::Main
+        };
+        meshes.push((
+            1,
+            Arc::new(MeshData::from_mesh(&shown, colours.as_deref())),
+            role,
+        ));
+        pick_surface = Some(shown);
+        if let Some(r) = registered {
+            let scale = registration_scale(&r.distance_mm);
+            let colours = scale.colours(&r.distance_mm);
+            meshes.push((
+                2,
+                Arc::new(MeshData::from_mesh(&r.result.mesh, Some(&colours))),
+                Role::Registered,
+            ));
+            legend = Some(scale);
+        }
+    } else {
+        meshes.push((
+            3,
+            Arc::new(MeshData::from_mesh(&doc.generic.mesh, None)),
+            Role::Main,
+        ));
+        pick_surface = Some(Arc::new(doc.generic.mesh.clone()));
     }
     SceneCache {
-        key,
+        key: scene_key(app),
+        generation,
         meshes,
         legend,
         pick_surface,
     }
 }
 
+/// The cut-away plane's x (mm), relative to the nose tip so the same cut works in the generic
+/// and the scan frames.
+fn cut_plane_x(app: &EditorApp, fem: &crate::app::document::FemState) -> f32 {
+    let nose = app
+        .doc
+        .generic
+        .feature_vertex(crate::feature_points::FeaturePoint::NoseTip);
+    fem.surface.positions_mm[nose as usize].x as f32 + app.view.layers.cut_x_mm
+}
+
+/// Arrows from each muscle's insertion towards its origin; length ∝ force × activation (a
+/// short stub for inactive muscles so every muscle can be found).
+fn muscle_arrows(
+    fem: &crate::app::document::FemState,
+    activations: &std::collections::BTreeMap<String, f64>,
+    u: &[glam::DVec3],
+) -> Vec<([f32; 3], [f32; 3], [f32; 4])> {
+    let a = fem.activation_vector(activations);
+    let max_force = fem
+        .muscles
+        .iter()
+        .map(|m| m.force_n)
+        .fold(f64::EPSILON, f64::max);
+    let mut out = Vec::new();
+    for (m, &ai) in fem.muscles.iter().zip(&a) {
+        // The arrow starts on the (deformed) skin at the insertion's nearest pulled node.
+        let start = m
+            .nodes
+            .iter()
+            .zip(&m.weights)
+            .max_by(|x, y| x.1.total_cmp(y.1))
+            .map_or(m.insertion_mm, |(&node, _)| {
+                fem.volume.nodes_mm[node as usize] + u[node as usize]
+            });
+        let dir = (m.origin_mm - m.insertion_mm).normalize_or_zero();
+        let strength = (m.force_n / max_force) * ai.abs();
+        let length = 4.0 + 14.0 * strength.min(2.0);
+        let end = start + dir * length;
+        let colour = if ai.abs() > 1e-6 {
+            [1.0, 0.55, 0.1, 1.0]
+        } else {
+            [0.45, 0.6, 0.9, 0.9]
+        };
+        let side = dir.cross(glam::DVec3::Z).normalize_or(glam::DVec3::X);
+        let head = 2.5;
+        let f = |p: glam::DVec3| p.as_vec3().to_array();
+        out.push((f(start), f(end), colour));
+        out.push((f(end), f(end - dir * head + side * head * 0.6), colour));
+        out.push((f(end), f(end - dir * head - side * head * 0.6), colour));
+    }
+    out
+}
+
 pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
-    let key = (app.doc.version, app.view.overlay, app.view.show_original);
+    let key = scene_key(app);
     if app.scene.as_ref().is_none_or(|s| s.key != key) {
-        app.scene = Some(build_scene(app));
+        let generation = app.scene.as_ref().map_or(1, |s| s.generation + 1);
+        app.scene = Some(build_scene(app, generation));
     }
     let rect = ui.available_rect_before_wrap();
     let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
@@ -141,7 +294,7 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         .filter(|(_, _, role)| *role != Role::Underlay || view.show_scan)
         .map(|(id, data, role)| SceneItem {
             id: *id,
-            version: app.doc.version * 8 + view.overlay as u64 * 2 + view.show_original as u64,
+            version: scene.generation,
             data: data.clone(),
             style: match role {
                 Role::Underlay => DrawStyle {
@@ -150,7 +303,21 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     wireframe: false,
                     ..base
                 },
-                _ => base,
+                Role::Layer(c) => DrawStyle {
+                    colour: Some(*c),
+                    wireframe: base.wireframe || view.layers.hex_edges,
+                    ..base
+                },
+                Role::Lines => DrawStyle {
+                    surface: false,
+                    wireframe: true,
+                    wire_colour: None,
+                    ..base
+                },
+                Role::Main | Role::Registered => DrawStyle {
+                    wireframe: base.wireframe || (app.doc.fem.is_some() && view.layers.hex_edges),
+                    ..base
+                },
             },
         })
         .collect();
@@ -179,6 +346,12 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         }
     }
     let aspect = (rect.width() / rect.height().max(1.0)) as f64;
+    let clip_plane = app
+        .doc
+        .fem
+        .as_ref()
+        .filter(|_| view.layers.cutaway)
+        .map(|fem| (glam::Vec3::X, cut_plane_x(app, fem)));
     let callback = ViewportCallback {
         view_proj: app.camera.view_proj(aspect),
         eye_mm: app.camera.eye_mm().as_vec3(),
@@ -187,7 +360,7 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         items,
         markers,
         marker_radius_px: 5.0,
-        clip_plane: None,
+        clip_plane,
     };
     ui.painter()
         .add(egui_wgpu::Callback::new_paint_callback(rect, callback));
@@ -198,6 +371,9 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         && let Some(landmarks) = &app.doc.edits.landmarks
     {
         for (p, x) in landmarks.iter() {
+            if clip_plane.is_some_and(|(n, d)| n.dot(x.as_vec3()) > d) {
+                continue;
+            }
             if let Some([px, py]) =
                 app.camera
                     .project_to_pixels(x, rect.width() as f64, rect.height() as f64)

@@ -2,9 +2,12 @@
 //! worker asks egui for a repaint so the UI thread picks them up on its next frame. The jobs
 //! themselves ([`run_job`]) are plain functions, tested without a window.
 
-use super::document::{DenoiseState, RegistrationState, SPIKE_MM, ScanState};
+use super::document::{DenoiseState, FemState, RegistrationState, SPIKE_MM, ScanState};
 use crate::denoise::DenoiseParams;
+use crate::feature_points::FeaturePoint;
 use crate::feature_points::Landmarks;
+use crate::fem::muscles::MuscleSet;
+use crate::fem::{FaceModel, FemParams};
 use crate::generic_face::GenericFace;
 use crate::registration::{RegistrationParams, SurfaceIndex};
 use crate::{Mesh, io};
@@ -25,12 +28,22 @@ pub enum Job {
         scan: Arc<Mesh>,
         landmarks: Box<Landmarks>,
     },
+    /// Bring the FEM model up to date with these inputs (build, refactor or re-solve, as
+    /// little as the change needs) and return its basis.
+    Fem {
+        surface: Arc<Mesh>,
+        surface_id: u64,
+        feature_vertices: [u32; FeaturePoint::COUNT],
+        params: FemParams,
+        muscles: MuscleSet,
+    },
 }
 
 pub enum JobResult {
     Loaded(Result<Box<ScanState>, String>),
     Denoised(Result<Box<DenoiseState>, String>),
     Registered(Result<Box<RegistrationState>, String>),
+    Fem(Result<Box<FemState>, String>),
 }
 
 pub struct Worker {
@@ -45,8 +58,9 @@ impl Worker {
         std::thread::Builder::new()
             .name("facesynth-worker".into())
             .spawn(move || {
+                let mut state = WorkerState::default();
                 for job in job_rx {
-                    if result_tx.send(run_job(job)).is_err() {
+                    if result_tx.send(state.run(job)).is_err() {
                         break;
                     }
                     ctx.request_repaint();
@@ -67,9 +81,100 @@ impl Worker {
     }
 }
 
-/// Runs one job to completion (on the worker thread, or directly in tests).
+/// What the worker keeps between jobs: the FEM model with its cached factorization.
+#[derive(Default)]
+pub struct WorkerState {
+    fem: Option<(u64, FaceModel, MuscleSet)>,
+}
+
+impl WorkerState {
+    /// Runs one job to completion (on the worker thread, or directly in tests).
+    pub fn run(&mut self, job: Job) -> JobResult {
+        match job {
+            Job::Fem {
+                surface,
+                surface_id,
+                feature_vertices,
+                params,
+                muscles,
+            } => JobResult::Fem(
+                self.fem(&surface, surface_id, feature_vertices, params, muscles)
+                    .map(Box::new),
+            ),
+            other => run_job(other),
+        }
+    }
+
+    fn fem(
+        &mut self,
+        surface: &Mesh,
+        surface_id: u64,
+        feature_vertices: [u32; FeaturePoint::COUNT],
+        params: FemParams,
+        muscles: MuscleSet,
+    ) -> Result<FemState, String> {
+        let start = Instant::now();
+        let e = |e: crate::Error| e.to_string();
+        // Reuse the model when only materials or muscles changed; a new surface or new layer
+        // thicknesses need a new volume.
+        let reusable = self.fem.as_ref().is_some_and(|(id, m, _)| {
+            *id == surface_id
+                && m.params.layers.skin_thickness_mm == params.layers.skin_thickness_mm
+                && m.params.layers.fat_thickness_mm == params.layers.fat_thickness_mm
+        });
+        let what;
+        if reusable {
+            let (_, model, old_muscles) = self.fem.as_mut().expect("checked");
+            let materials_changed =
+                model.params.skin != params.skin || model.params.fat != params.fat;
+            if materials_changed {
+                model.set_materials(params.skin, params.fat).map_err(e)?;
+                model.factor().map_err(e)?;
+                what = "materials changed: refactored, basis re-solved";
+            } else {
+                what = "muscles re-solved with the cached factor";
+            }
+            if materials_changed || *old_muscles != muscles || !model.has_basis() {
+                model.set_muscles(&muscles).map_err(e)?;
+                model.compute_basis().map_err(e)?;
+                *old_muscles = muscles.clone();
+            }
+        } else {
+            // Drop the old model first so a failed build does not leave a stale one behind.
+            self.fem = None;
+            let mut model = FaceModel::new(surface, feature_vertices, &params).map_err(e)?;
+            model.factor().map_err(e)?;
+            model.set_muscles(&muscles).map_err(e)?;
+            model.compute_basis().map_err(e)?;
+            self.fem = Some((surface_id, model, muscles.clone()));
+            what = "built, factored, basis solved";
+        }
+        let (_, model, _) = self.fem.as_ref().expect("set above");
+        let basis = (0..model.muscles().len())
+            .map(|i| model.basis_displacement(i).unwrap_or_default())
+            .collect();
+        Ok(FemState {
+            volume: Arc::new(model.volume.clone()),
+            surface: Arc::new(model.surface.clone()),
+            muscles: model.muscles().to_vec(),
+            basis: Arc::new(basis),
+            fixed: model.fixed_nodes().to_vec(),
+            params: model.params,
+            muscle_set: muscles,
+            dofs: model.dofs(),
+            quality: model.quality,
+            timings: model.timings,
+            last_update: what.into(),
+            millis: start.elapsed().as_secs_f64() * 1e3,
+            surface_id,
+        })
+    }
+}
+
+/// Runs one stateless job (everything but the FEM model).
 pub fn run_job(job: Job) -> JobResult {
     match job {
+        Job::Fem { .. } => JobResult::Fem(Err("the FEM job needs the worker's state".into())),
         Job::Load(path) => JobResult::Loaded(load_scan(path).map(Box::new)),
         Job::Denoise { mesh, params } => JobResult::Denoised(denoise(&mesh, params).map(Box::new)),
         Job::Register {

@@ -2,8 +2,11 @@
 //! [`Command`](super::document::Command)s; none of them computes anything itself.
 
 mod denoise_ui;
+mod expressions_ui;
 mod file_ui;
 mod landmarks_ui;
+mod materials_ui;
+mod muscles_ui;
 mod registration_ui;
 mod view_ui;
 
@@ -29,11 +32,20 @@ pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         .default_open(true)
         .show(ui, |ui| denoise_ui::denoise_ui(app, ui));
     egui::CollapsingHeader::new("Landmarks")
-        .default_open(true)
+        .default_open(app.landmarks_open)
         .show(ui, |ui| landmarks_ui::landmarks_ui(app, ui));
     egui::CollapsingHeader::new("Registration")
         .default_open(true)
         .show(ui, |ui| registration_ui::registration_ui(app, ui));
+    egui::CollapsingHeader::new("Materials (FEM)")
+        .default_open(true)
+        .show(ui, |ui| materials_ui::materials_ui(app, ui));
+    egui::CollapsingHeader::new("Muscles")
+        .default_open(false)
+        .show(ui, |ui| muscles_ui::muscles_ui(app, ui));
+    egui::CollapsingHeader::new("Expressions")
+        .default_open(true)
+        .show(ui, |ui| expressions_ui::expressions_ui(app, ui));
     egui::CollapsingHeader::new("View")
         .default_open(true)
         .show(ui, |ui| view_ui::view_ui(app, ui));

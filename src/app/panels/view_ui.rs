@@ -12,7 +12,28 @@ pub fn view_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         ui.selectable_value(&mut v.overlay, Overlay::Plain, "plain");
         ui.selectable_value(&mut v.overlay, Overlay::Denoise, "denoise");
         ui.selectable_value(&mut v.overlay, Overlay::Registration, "registration");
+        ui.selectable_value(&mut v.overlay, Overlay::Displacement, "displacement");
     });
+    if app.doc.fem.is_some() {
+        let l = &mut v.layers;
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut l.show_fem, "FEM face");
+            ui.checkbox(&mut l.skin, "skin");
+            ui.checkbox(&mut l.fat, "fat");
+            ui.checkbox(&mut l.cranium, "cranium");
+        });
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut l.hex_edges, "hexahedra");
+            ui.checkbox(&mut l.muscles, "muscles");
+            ui.checkbox(&mut l.cutaway, "cut-away");
+        });
+        if l.cutaway {
+            ui.add(egui::Slider::new(&mut l.cut_x_mm, -70.0..=70.0).text("cut x from nose (mm)"));
+        }
+        if app.doc.scan.is_some() {
+            ui.checkbox(&mut v.show_scan, "Scan under the FEM face");
+        }
+    }
     if v.overlay == Overlay::Registration {
         ui.checkbox(&mut v.show_scan, "Scan under the registered face");
         ui.add_enabled(
