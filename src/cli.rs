@@ -173,6 +173,11 @@ pub struct ViewArgs {
     /// Camera elevation, degrees.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub pitch: f64,
+    /// Responsiveness check: after the scripted steps, drive the zygomatic sliders for this
+    /// many frames, then halve the skin modulus; print frame times and the worker's re-solve
+    /// time as JSON and exit (builds the FEM model if the script did not).
+    #[arg(long, value_name = "FRAMES")]
+    pub measure_slider: Option<u32>,
 }
 
 /// FEM layers drawn in the viewport.

@@ -3,6 +3,7 @@
 //! on the worker thread and comes back over a channel; the UI thread never blocks.
 
 pub mod document;
+mod measure;
 mod panels;
 pub mod undo;
 mod viewport_ui;
@@ -190,7 +191,10 @@ pub struct EditorApp {
     /// Start with the landmark table open (closed when the script goes on to the FEM).
     landmarks_open: bool,
     scene: Option<viewport_ui::SceneCache>,
+    /// Time of the last scene rebuild (basis sum + GPU mesh arrays), ms.
+    scene_build_ms: f64,
     screenshot: Option<ScreenshotPlan>,
+    measure: Option<measure::SliderMeasurement>,
     outcome: Arc<Mutex<Option<String>>>,
 }
 
@@ -236,7 +240,9 @@ impl EditorApp {
             preset_name: "my_expression".into(),
             blend: Default::default(),
             landmarks_open: !(args.fem || args.expression.is_some()),
+            measure: args.measure_slider.map(measure::SliderMeasurement::new),
             scene: None,
+            scene_build_ms: 0.0,
             screenshot: args.screenshot.map(|path| ScreenshotPlan {
                 path,
                 frames_drawn: 0,
@@ -377,7 +383,7 @@ fn script_from_args(args: &ViewArgs) -> VecDeque<Command> {
     if args.register {
         script.push_back(Command::Register);
     }
-    if args.fem || args.expression.is_some() {
+    if args.fem || args.expression.is_some() || args.measure_slider.is_some() {
         script.push_back(Command::BuildFem);
     }
     if let Some(name) = &args.expression {
@@ -423,7 +429,11 @@ impl eframe::App for EditorApp {
                 egui::ScrollArea::vertical().show(ui, |ui| panels::side_panel_ui(self, ui));
             });
         egui::CentralPanel::no_frame().show(ui, |ui| viewport_ui::viewport_ui(self, ui));
-        self.handle_screenshot(&ctx);
+        if self.measure.is_some() {
+            measure::step(self, &ctx);
+        } else {
+            self.handle_screenshot(&ctx);
+        }
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {

@@ -275,7 +275,9 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     let key = scene_key(app);
     if app.scene.as_ref().is_none_or(|s| s.key != key) {
         let generation = app.scene.as_ref().map_or(1, |s| s.generation + 1);
+        let start = std::time::Instant::now();
         app.scene = Some(build_scene(app, generation));
+        app.scene_build_ms = start.elapsed().as_secs_f64() * 1e3;
     }
     let rect = ui.available_rect_before_wrap();
     let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());

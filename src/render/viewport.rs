@@ -8,8 +8,10 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Multisampling of the offscreen target: smooth silhouettes and wire edges.
-const SAMPLES: u32 = 4;
+/// Multisampling of the offscreen target on a GPU: smooth silhouettes and wire edges. A
+/// software rasteriser (lavapipe, llvmpipe) renders without it: 4× MSAA there costs more than
+/// the rest of the frame (the editor must stay interactive on machines without a GPU).
+const GPU_SAMPLES: u32 = 4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -103,7 +105,7 @@ struct GpuMesh {
 
 struct Target {
     size: [u32; 2],
-    msaa_view: wgpu::TextureView,
+    msaa_view: Option<wgpu::TextureView>,
     depth_view: wgpu::TextureView,
     resolve_view: wgpu::TextureView,
     blit_bind: wgpu::BindGroup,
@@ -112,6 +114,7 @@ struct Target {
 /// Pipelines and buffers, created once and stored in egui_wgpu's callback resources.
 pub struct ViewportRenderer {
     format: wgpu::TextureFormat,
+    samples: u32,
     opaque_pipeline: wgpu::RenderPipeline,
     blended_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
@@ -171,7 +174,7 @@ fn bind_buffer(
 
 impl ViewportRenderer {
     /// Creates pipelines for egui's target format. Call once (app start-up).
-    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Self {
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, samples: u32) -> Self {
         let mesh_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("facesynth mesh.wgsl"),
             source: wgpu::ShaderSource::Wgsl(MESH_SHADER.into()),
@@ -212,7 +215,7 @@ impl ViewportRenderer {
         };
         let blend = Some(wgpu::BlendState::ALPHA_BLENDING);
         let multisample = wgpu::MultisampleState {
-            count: SAMPLES,
+            count: samples,
             ..Default::default()
         };
         let pipeline = |label: &str,
@@ -356,6 +359,7 @@ impl ViewportRenderer {
         let marker_uniform_bind = bind_buffer(device, &draw_layout, &marker_uniform);
         ViewportRenderer {
             format,
+            samples,
             opaque_pipeline,
             blended_pipeline,
             line_pipeline,
@@ -376,7 +380,10 @@ impl ViewportRenderer {
 
     /// Registers the renderer in egui_wgpu's callback resources (once, at app start-up).
     pub fn install(render_state: &egui_wgpu::RenderState) {
-        let renderer = ViewportRenderer::new(&render_state.device, render_state.target_format);
+        let software = render_state.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+        let samples = if software { 1 } else { GPU_SAMPLES };
+        let renderer =
+            ViewportRenderer::new(&render_state.device, render_state.target_format, samples);
         render_state
             .renderer
             .write()
@@ -408,8 +415,10 @@ impl ViewportRenderer {
                 .create_view(&wgpu::TextureViewDescriptor::default())
         };
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
-        let msaa_view = texture("viewport msaa", self.format, SAMPLES, attach);
-        let depth_view = texture("viewport depth", DEPTH_FORMAT, SAMPLES, attach);
+        // Single-sampled: the pass draws straight into the resolve texture.
+        let msaa_view =
+            (self.samples > 1).then(|| texture("viewport msaa", self.format, self.samples, attach));
+        let depth_view = texture("viewport depth", DEPTH_FORMAT, self.samples, attach);
         let resolve_view = texture(
             "viewport colour",
             self.format,
@@ -580,9 +589,9 @@ impl CallbackTrait for ViewportCallback {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("facesynth viewport"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &target.msaa_view,
+                view: target.msaa_view.as_ref().unwrap_or(&target.resolve_view),
                 depth_slice: None,
-                resolve_target: Some(&target.resolve_view),
+                resolve_target: target.msaa_view.as_ref().map(|_| &target.resolve_view),
                 ops: wgpu::Operations {
                     load: wgpu::LoadOp::Clear(wgpu::Color {
                         r: bg[0] as f64,
@@ -590,7 +599,11 @@ impl CallbackTrait for ViewportCallback {
                         b: bg[2] as f64,
                         a: bg[3] as f64,
                     }),
-                    store: wgpu::StoreOp::Discard,
+                    store: if target.msaa_view.is_some() {
+                        wgpu::StoreOp::Discard
+                    } else {
+                        wgpu::StoreOp::Store
+                    },
                 },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
