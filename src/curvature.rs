@@ -14,7 +14,7 @@
 //! normal* (convex, like the nose tip with normals towards the scanner, +z). A sphere of radius
 //! R seen from outside has κ₁ = κ₂ = +1/R.
 //!
-//! # Shape index (Dorai & Jain 1997, as used by Colbry/Lu, the paper's ref. [9])
+//! # Shape index (Dorai & Jain 1997, as used by Colbry/Lu, the paper's ref. \[9\])
 //!
 //! `S = 1/2 + (1/π)·atan((κ₁ + κ₂)/(κ₁ − κ₂))`, in [0, 1]. With our sign convention this is
 //! Dorai–Jain's `1/2 − (1/π)·atan(…)` (they take convex curvature as negative), and it gives
@@ -22,9 +22,9 @@
 //! cylinder) → 0.75, saddle → 0.5, rut (concave cylinder) → 0.25, **concave cup (inner eye
 //! corner) → 0**. At umbilic points (κ₁ = κ₂) the fraction is ±∞ and `atan` gives ±π/2, so
 //! caps and cups are exactly 1 and 0. **Planar points** (curvedness
-//! `√((κ₁² + κ₂²)/2)` below [`CurvatureParams::flat_curvedness_per_mm`]) have no defined
+//! `√((κ₁² + κ₂²)/2)` below [`CurvatureParams::flat_curvedness_per_mm`](CurvatureParams)) have no defined
 //! shape index: we return **0.5** there (neither convex nor concave) and callers that care
-//! check [`SurfaceDescriptors::curvedness_per_mm`].
+//! check [`SurfaceDescriptors::curvedness_per_mm`](SurfaceDescriptors).
 //!
 //! # Derivative maps
 //!

@@ -182,6 +182,14 @@ pub const OUTER_EYE_CONCAVE_MAX_S: f64 = 0.3;
 pub const OUTER_EYE_OFFSET_MM: (f64, f64) = (26.0, 1.5);
 /// Our step 5: nose corners (nostril bases) lie in concave regions with `S <` this.
 pub const NOSE_CORNER_CONCAVE_MAX_S: f64 = 0.3;
+/// Our step 9: the chin walk starts this far below the mouth line, mm (below the lower lip),
+/// from every strip vertex in the 12 mm below that.
+pub const CHIN_WALK_START_BELOW_MOUTH_MM: f64 = 12.0;
+/// Our step 9: the chin is the reached vertex furthest in the direction `(0, −1, this)`
+/// (face frame `v`, scan `z`): down *and forward*, so a neck joined to the chin (no depth
+/// jump) does not win by being lower. Measured on the benchmark: 0 → chin mean error
+/// 4.9 mm, 0.8 → 3.5 mm (neutral scans).
+pub const CHIN_FORWARD_WEIGHT: f64 = 0.8;
 /// Our step 9: the chin walk passes vertices whose mesh normal has `n_z >` this.
 pub const CHIN_WALK_MIN_NZ: f64 = 0.5;
 /// Paper step 5: nose corners: `|∂/∂z| ≤` this …
@@ -798,18 +806,28 @@ impl Detector<'_> {
     /// the strip (so depth jumps, holes and the hairline stop it), returns the vertex of
     /// largest key reached.
     fn strip_walk(&self, key: &[f64]) -> Option<usize> {
-        self.strip_walk_by(key, |v| key[v])
+        self.strip_walk_by(key, 0.0, |v| key[v])
     }
 
     /// [`Self::strip_walk`] returning the reached vertex of largest `score`.
-    fn strip_walk_by(&self, key: &[f64], score: impl Fn(usize) -> f64) -> Option<usize> {
+    /// Every strip vertex within `seed_band_mm` of the smallest key seeds the walk.
+    fn strip_walk_by(
+        &self,
+        key: &[f64],
+        seed_band_mm: f64,
+        score: impl Fn(usize) -> f64,
+    ) -> Option<usize> {
         let start = (0..key.len())
             .filter(|&v| !key[v].is_nan())
             .min_by(|&a, &b| key[a].total_cmp(&key[b]))?;
         let mask: Vec<bool> = key.iter().map(|k| !k.is_nan()).collect();
         let mut seen = vec![false; key.len()];
-        let mut stack = vec![start];
-        seen[start] = true;
+        let mut stack: Vec<usize> = (0..key.len())
+            .filter(|&v| mask[v] && key[v] <= key[start] + seed_band_mm)
+            .collect();
+        for &v in &stack {
+            seen[v] = true;
+        }
         let mut best = start;
         while let Some(v) = stack.pop() {
             if score(v) > score(best) {
@@ -826,10 +844,10 @@ impl Detector<'_> {
         Some(best)
     }
 
-    /// Step 9: walk down a 16 mm wide strip below the mouth (centred between the mouth
-    /// corners), along mesh edges, through vertices whose **mesh** normal faces the scanner
-    /// (`n_z > 0.5`); the chin is the reached vertex lowest in `v`, less half its distance
-    /// from the strip's centre line. The scan's chin–neck depth jump, or the underside turning
+    /// Step 9: walk down a 16 mm wide strip from below the lower lip (centred between the
+    /// mouth corners; seeds: every strip vertex 12–24 mm below the mouth line), along mesh edges, through vertices whose **mesh** normal faces the scanner
+    /// (`n_z > 0.5`); the chin is the reached vertex furthest down-and-forward
+    /// ([`CHIN_FORWARD_WEIGHT`]), less half its distance from the strip's centre line. The scan's chin–neck depth jump, or the underside turning
     /// away, ends the walk. Changed from the paper (the lowest point of the biggest
     /// `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm above
     /// the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
@@ -837,18 +855,27 @@ impl Detector<'_> {
     /// run on down the neck.
     fn chin(&mut self, frame: &Frame, mid_u: f64, mouth_v: f64) -> usize {
         let lowest = -NOSE_TIP_TO_CHIN.max_mm - 25.0;
+        // Start below the lower lip (whose underside faces down and would end the walk).
+        let (top, band) = (mouth_v - CHIN_WALK_START_BELOW_MOUTH_MM, 12.0);
+        let in_strip = |v: usize| {
+            let q = frame.uv(self.p(v));
+            (q.x - mid_u).abs() <= 8.0 && q.y <= top && q.y >= lowest
+        };
         let key: Vec<f64> = (0..self.mesh.vertex_count())
             .map(|v| {
-                let q = frame.uv(self.p(v));
-                let inside = self.mesh.normals[v].z > CHIN_WALK_MIN_NZ
-                    && (q.x - mid_u).abs() <= 8.0
-                    && q.y <= mouth_v - 5.0
-                    && q.y >= lowest;
-                if inside { -q.y } else { f64::NAN }
+                let inside = in_strip(v) && self.mesh.normals[v].z > CHIN_WALK_MIN_NZ;
+                if inside {
+                    -frame.uv(self.p(v)).y
+                } else {
+                    f64::NAN
+                }
             })
             .collect();
-        let score = |v: usize| key[v] - 0.5 * (frame.uv(self.p(v)).x - mid_u).abs();
-        match self.strip_walk_by(&key, score) {
+        let score = |v: usize| {
+            key[v] - 0.5 * (frame.uv(self.p(v)).x - mid_u).abs()
+                + CHIN_FORWARD_WEIGHT * (self.p(v).z - frame.origin.z)
+        };
+        match self.strip_walk_by(&key, band, score) {
             Some(v) => v,
             None => self.fallback(
                 FeaturePoint::Chin,
