@@ -24,23 +24,28 @@ fn generated_scans_meet_the_measured_accuracy() {
     let n = &s.neutral;
     assert_eq!(n.scans, 8);
     assert_eq!(n.detected, 8, "{:#?}", report.scans);
-    assert!(n.success_rate >= 0.6, "neutral success {}", n.success_rate);
+    assert!(n.success_rate >= 0.87, "neutral success {}", n.success_rate);
     let mean = |name: &str| n.points[name].mean_mm;
     assert!(mean("nose_tip") <= 3.0, "nose tip {}", mean("nose_tip"));
     for p in ["inner_eye_left", "inner_eye_right"] {
-        assert!(mean(p) <= 4.0, "{p} {}", mean(p));
+        assert!(mean(p) <= 3.5, "{p} {}", mean(p));
     }
     for p in ["outer_eye_left", "outer_eye_right"] {
         assert!(mean(p) <= 5.0, "{p} {}", mean(p));
     }
     for (p, st) in &n.points {
-        let bound = if p == "chin" { 15.0 } else { 6.0 };
+        let bound = 6.0;
         assert!(st.mean_mm <= bound, "{p} mean {} mm", st.mean_mm);
     }
     let e = &s.expression;
     assert_eq!(e.scans, 12);
     assert!(e.detected >= 11);
     assert!(e.points["nose_tip"].mean_mm <= 3.5);
+    assert!(
+        e.success_rate >= 0.6,
+        "expression success {}",
+        e.success_rate
+    );
 }
 
 /// Rotates a scan and its ground truth about the nose tip and checks the nose tip and the eye
