@@ -94,6 +94,13 @@ pub enum Command {
         #[arg(long, value_name = "PNG")]
         png: Option<PathBuf>,
     },
+    /// Benchmark: denoise + feature points on one scan, repeated; prints min/median ms per stage.
+    BenchLandmarks {
+        input: PathBuf,
+        /// Repetitions (the minimum is the least disturbed on a shared machine).
+        #[arg(long, default_value_t = 20)]
+        repeat: usize,
+    },
     /// Score feature-point detection on a synth_gavab.py folder against its ground truth.
     EvalLandmarks {
         /// Folder written by ../shared/bench/synth_gavab.py (scans + JSON ground truth).
@@ -213,6 +220,9 @@ pub fn run(cli: Cli) -> Result<()> {
             json.as_deref(),
             png.as_deref(),
         )?),
+        Some(Command::BenchLandmarks { input, repeat }) => {
+            print_json(&bench_landmarks(&input, repeat)?)
+        }
         Some(Command::EvalLandmarks {
             dir,
             no_denoise,
@@ -303,6 +313,34 @@ pub fn landmarks(
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
     Ok(value)
+}
+
+/// `facesynth bench-landmarks IN`: wall time of denoise and of detection, `repeat` times
+/// (single-threaded code; run it pinned to one core, e.g. `taskset -c 0`).
+pub fn bench_landmarks(input: &Path, repeat: usize) -> Result<serde_json::Value> {
+    let mesh = io::read_mesh(input)?;
+    let params = crate::landmarks::LandmarkParams::default();
+    let (mut den, mut det, mut total) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..repeat.max(1) {
+        let mut m = mesh.clone();
+        let t0 = std::time::Instant::now();
+        denoise::denoise(&mut m, &denoise::DenoiseParams::default())?;
+        let t1 = std::time::Instant::now();
+        crate::landmarks::detect(&m, &params)?;
+        let t2 = std::time::Instant::now();
+        den.push((t1 - t0).as_secs_f64() * 1e3);
+        det.push((t2 - t1).as_secs_f64() * 1e3);
+        total.push((t2 - t0).as_secs_f64() * 1e3);
+    }
+    let stats = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        json!({"min": v[0], "median": v[v.len() / 2]})
+    };
+    Ok(json!({
+        "input": input, "vertices": mesh.vertex_count(), "repeat": repeat.max(1),
+        "denoise_ms": stats(&mut den), "landmarks_ms": stats(&mut det),
+        "total_ms": stats(&mut total),
+    }))
 }
 
 /// `facesynth register`: registers the built-in generic face to `scan`.

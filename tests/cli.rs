@@ -155,3 +155,18 @@ fn landmarks_prints_points_distances_warnings_and_time() {
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(saved["landmarks"], v["landmarks"]);
 }
+
+#[test]
+fn bench_landmarks_reports_stage_times() {
+    let src = common::gavab("cara1_frontal1.wrl");
+    let v = json_of(&facesynth(&[
+        "bench-landmarks",
+        src.to_str().unwrap(),
+        "--repeat",
+        "1",
+    ]));
+    assert_eq!(v["vertices"], 13709);
+    for k in ["denoise_ms", "landmarks_ms", "total_ms"] {
+        assert!(v[k]["min"].as_f64().unwrap() > 0.0, "{k}");
+    }
+}
