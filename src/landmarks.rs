@@ -1059,3 +1059,52 @@ fn plausibility(lm: &Landmarks, frame: &Frame) -> Vec<PairDistance> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A face laid out at Table 2's average distances passes every check; moving the chin
+    /// up to 30 mm below the nose tip flags exactly the chin.
+    #[test]
+    fn plausibility_flags_only_the_point_out_of_its_table_2_range() {
+        use FeaturePoint::*;
+        let mut lm = Landmarks([DVec3::ZERO; FeaturePoint::COUNT]);
+        let at = |u: f64, v: f64| DVec3::new(u, v, -10.0);
+        lm.set(NoseTip, DVec3::ZERO);
+        lm.set(InnerEyeLeft, at(17.5, 32.2));
+        lm.set(InnerEyeRight, at(-17.5, 32.2));
+        lm.set(OuterEyeLeft, at(48.1, 32.2));
+        lm.set(OuterEyeRight, at(-48.1, 32.2));
+        lm.set(MouthCornerLeft, at(25.0, -34.4));
+        lm.set(MouthCornerRight, at(-25.0, -34.4));
+        lm.set(Chin, at(0.0, -70.6));
+        lm.set(Forehead, at(0.0, 121.7));
+        let frame = Frame::new(DVec3::ZERO, 0.0);
+        let d = plausibility(&lm, &frame);
+        assert_eq!(d.len(), 9);
+        assert!(d.iter().all(|p| p.in_range), "{d:#?}");
+        let chin = d.iter().find(|p| p.name == "nose_tip-chin").unwrap();
+        assert!((chin.measured_mm - 70.6).abs() < 1e-9);
+        lm.set(Chin, at(0.0, -30.0));
+        let bad: Vec<_> = plausibility(&lm, &frame)
+            .into_iter()
+            .filter(|p| !p.in_range)
+            .map(|p| p.point)
+            .collect();
+        assert_eq!(bad, vec![Chin]);
+        // Distances follow the face frame: the same layout rolled by 10° measures the same.
+        let roll = 10f64.to_radians();
+        let (c, s) = (roll.cos(), roll.sin());
+        let mut rolled = lm;
+        for p in FeaturePoint::ALL {
+            let x = lm.get(p);
+            rolled.set(p, DVec3::new(c * x.x - s * x.y, s * x.x + c * x.y, x.z));
+        }
+        let a = plausibility(&lm, &frame);
+        let b = plausibility(&rolled, &Frame::new(DVec3::ZERO, roll));
+        for (a, b) in a.iter().zip(&b) {
+            assert!((a.measured_mm - b.measured_mm).abs() < 1e-9, "{}", a.name);
+        }
+    }
+}

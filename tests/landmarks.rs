@@ -49,7 +49,8 @@ fn generated_scans_meet_the_measured_accuracy() {
 }
 
 /// Rotates a scan and its ground truth about the nose tip and checks the nose tip and the eye
-/// corners still come out right (within 6 mm) for ±10° roll, yaw and pitch.
+/// corners still come out right (within 6 mm), and the other scored points within 10 mm,
+/// for ±10° roll, yaw and pitch (measured: worst 6.7 mm, the chin).
 #[test]
 fn detection_follows_ten_degree_rotations() {
     let dir = common::synth_dataset(4, 3, false);
@@ -74,15 +75,16 @@ fn detection_follows_ten_degree_rotations() {
         m.update_normals();
         let found = landmarks::detect(&m, &LandmarkParams::default())
             .unwrap_or_else(|e| panic!("{what}: {e}"));
-        for p in [
-            FeaturePoint::NoseTip,
-            FeaturePoint::InnerEyeLeft,
-            FeaturePoint::InnerEyeRight,
-        ] {
-            let want =
-                pivot + r * (DVec3::from_array(truth.feature_point(p).unwrap().xyz_mm) - pivot);
+        for (p, xyz, _) in truth.feature_points() {
+            let want = pivot + r * (xyz - pivot);
             let err = (found.landmarks.get(p) - want).length();
-            assert!(err <= 6.0, "{what}: {p} off by {err:.1} mm");
+            let bound = match p {
+                FeaturePoint::NoseTip
+                | FeaturePoint::InnerEyeLeft
+                | FeaturePoint::InnerEyeRight => 6.0,
+                _ => 10.0,
+            };
+            assert!(err <= bound, "{what}: {p} off by {err:.1} mm");
         }
     }
 }
