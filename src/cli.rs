@@ -117,6 +117,46 @@ pub enum Command {
         #[command(subcommand)]
         what: BenchWhat,
     },
+    /// Write a scan with its shape index (paper 2.1.2) as the per-vertex `quality` of a PLY.
+    Curvature {
+        input: PathBuf,
+        /// Output .ply (binary; MeshLab shows the scalar as vertex quality).
+        output: PathBuf,
+        /// Edge hops of the neighbourhood fitted at each vertex.
+        #[arg(long, default_value_t = 2)]
+        rings: usize,
+    },
+    /// Detect the 13 feature points of a scan (paper 2.1.2) and print them as JSON.
+    Landmarks {
+        input: PathBuf,
+        /// Skip the median-Laplacian denoising that runs first by default.
+        #[arg(long)]
+        no_denoise: bool,
+        /// Also write the JSON report to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Also write a picture: shape index seen from the scanner, with the points.
+        #[arg(long, value_name = "PNG")]
+        png: Option<PathBuf>,
+    },
+    /// Benchmark: denoise + feature points on one scan, repeated; prints min/median ms per stage.
+    BenchLandmarks {
+        input: PathBuf,
+        /// Repetitions (the minimum is the least disturbed on a shared machine).
+        #[arg(long, default_value_t = 20)]
+        repeat: usize,
+    },
+    /// Score feature-point detection on a synth_gavab.py folder against its ground truth.
+    EvalLandmarks {
+        /// Folder written by ../shared/bench/synth_gavab.py (scans + JSON ground truth).
+        dir: PathBuf,
+        /// Skip denoising before detection.
+        #[arg(long)]
+        no_denoise: bool,
+        /// Also write the JSON report (with per-scan errors) to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
 }
@@ -309,6 +349,37 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::Bench {
             what: BenchWhat::Fem,
         }) => print_json(&fem::bench_fem()?),
+        Some(Command::Curvature {
+            input,
+            output,
+            rings,
+        }) => print_json(&curvature(&input, &output, rings)?),
+        Some(Command::Landmarks {
+            input,
+            no_denoise,
+            json,
+            png,
+        }) => print_json(&landmarks(
+            &input,
+            !no_denoise,
+            json.as_deref(),
+            png.as_deref(),
+        )?),
+        Some(Command::BenchLandmarks { input, repeat }) => {
+            print_json(&bench_landmarks(&input, repeat)?)
+        }
+        Some(Command::EvalLandmarks {
+            dir,
+            no_denoise,
+            json,
+        }) => {
+            let params = crate::landmarks::LandmarkParams::default();
+            let report = crate::landmarks::eval::evaluate_dir(&dir, !no_denoise, &params)?;
+            if let Some(path) = &json {
+                io::write_text_atomic(path, &(serde_json::to_string_pretty(&report)? + "\n"))?;
+            }
+            print_json(&serde_json::to_value(report.summary())?)
+        }
         Some(Command::View(args)) => view(args),
         None => view(cli.view),
     }
@@ -328,6 +399,92 @@ pub fn info(file: &Path) -> Result<serde_json::Value> {
         "triangles": counts.triangles,
         "bbox_min_mm": round(lo),
         "bbox_max_mm": round(hi),
+    }))
+}
+
+/// `facesynth curvature IN OUT.ply`: the shape index as the PLY's per-vertex `quality`.
+pub fn curvature(input: &Path, output: &Path, rings: usize) -> Result<serde_json::Value> {
+    if io::MeshFormat::from_path(output)? != io::MeshFormat::Ply {
+        anyhow::bail!(
+            "{}: the shape index is written as PLY only",
+            output.display()
+        );
+    }
+    let mesh = io::read_mesh(input)?;
+    let params = crate::curvature::CurvatureParams {
+        rings,
+        ..Default::default()
+    };
+    let start = std::time::Instant::now();
+    let d = crate::curvature::compute(&mesh, &params)?;
+    let millis = start.elapsed().as_secs_f64() * 1e3;
+    let s: Vec<f32> = d.shape_index.iter().map(|&v| v as f32).collect();
+    io::write_atomic(output, |w| {
+        io::ply::write_binary(w, &mesh, Some(("quality", &s)))
+    })?;
+    let mean = d.shape_index.iter().sum::<f64>() / d.len().max(1) as f64;
+    Ok(json!({
+        "input": input, "output": output, "vertices": mesh.vertex_count(),
+        "rings": rings, "mean_shape_index": mean, "millis": millis,
+    }))
+}
+
+/// `facesynth landmarks IN`: denoise (unless told not to), detect, report.
+pub fn landmarks(
+    input: &Path,
+    denoise_first: bool,
+    out: Option<&Path>,
+    png: Option<&Path>,
+) -> Result<serde_json::Value> {
+    let mut mesh = io::read_mesh(input)?;
+    let start = std::time::Instant::now();
+    if denoise_first {
+        denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
+    }
+    let params = crate::landmarks::LandmarkParams::default();
+    let found = crate::landmarks::detect(&mesh, &params);
+    let millis = start.elapsed().as_secs_f64() * 1e3;
+    if let Some(path) = png {
+        let d = crate::curvature::compute(&mesh, &params.curvature)?;
+        let points = found.as_ref().ok().map(|r| &r.landmarks);
+        crate::landmarks::render::write_png(path, &mesh, &d.shape_index, points)?;
+    }
+    let report = found.with_context(|| format!("{}: feature points not found", input.display()))?;
+    let mut value = report.to_json();
+    value["millis"] = json!(millis);
+    value["input"] = json!(input);
+    value["denoised"] = json!(denoise_first);
+    if let Some(path) = out {
+        io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+    }
+    Ok(value)
+}
+
+/// `facesynth bench-landmarks IN`: wall time of denoise and of detection, `repeat` times
+/// (single-threaded code; run it pinned to one core, e.g. `taskset -c 0`).
+pub fn bench_landmarks(input: &Path, repeat: usize) -> Result<serde_json::Value> {
+    let mesh = io::read_mesh(input)?;
+    let params = crate::landmarks::LandmarkParams::default();
+    let (mut den, mut det, mut total) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..repeat.max(1) {
+        let mut m = mesh.clone();
+        let t0 = std::time::Instant::now();
+        denoise::denoise(&mut m, &denoise::DenoiseParams::default())?;
+        let t1 = std::time::Instant::now();
+        crate::landmarks::detect(&m, &params)?;
+        let t2 = std::time::Instant::now();
+        den.push((t1 - t0).as_secs_f64() * 1e3);
+        det.push((t2 - t1).as_secs_f64() * 1e3);
+        total.push((t2 - t0).as_secs_f64() * 1e3);
+    }
+    let stats = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        json!({"min": v[0], "median": v[v.len() / 2]})
+    };
+    Ok(json!({
+        "input": input, "vertices": mesh.vertex_count(), "repeat": repeat.max(1),
+        "denoise_ms": stats(&mut den), "landmarks_ms": stats(&mut det),
+        "total_ms": stats(&mut total),
     }))
 }
 

@@ -6,6 +6,8 @@
 
 /// Headless command implementations behind `facesynth <command>` (main.rs only parses).
 pub mod cli;
+/// Surface descriptors (paper 2.1.2, Figure 7): principal curvatures, shape index, normal maps.
+pub mod curvature;
 /// Mesh denoising (paper 2.1.1): median + Laplacian filter moving only the largest changes; baselines.
 pub mod denoise;
 /// Typed errors of the library (one-line messages that name the file and the problem).
@@ -21,6 +23,8 @@ pub mod generic_face;
 pub mod ground_truth;
 /// Mesh readers and writers: VRML 1.0/2.0, OBJ, PLY, xyz point clouds.
 pub mod io;
+/// Automatic feature points (paper 2.1.2): the nine steps, Table 2 checks, evaluation.
+pub mod landmarks;
 /// The polygon mesh (positions in mm, faces as they come), topology and normals.
 pub mod mesh;
 /// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.

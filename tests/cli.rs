@@ -105,3 +105,68 @@ fn bad_input_gives_one_line_error_naming_the_file_and_exit_code_1() {
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
 }
+
+#[test]
+fn curvature_writes_shape_index_as_ply_quality() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s.ply");
+    let src = common::gavab("cara1_frontal1.wrl");
+    let v = json_of(&facesynth(&[
+        "curvature",
+        src.to_str().unwrap(),
+        out.to_str().unwrap(),
+    ]));
+    assert_eq!(v["vertices"], 13709);
+    let bytes = std::fs::read(&out).unwrap();
+    let (mesh, s) = facesynth::io::ply::parse_with_scalar(
+        &bytes,
+        &out,
+        &facesynth::io::ReadLimits::default(),
+        Some("quality"),
+    )
+    .unwrap();
+    let s = s.expect("quality property");
+    assert_eq!(s.len(), mesh.vertex_count());
+    assert!(s.iter().all(|x| (0.0..=1.0).contains(x)));
+    // Writing anything but PLY is refused with one line.
+    let bad = facesynth(&["curvature", src.to_str().unwrap(), "x.obj"]);
+    assert!(!bad.status.success());
+}
+
+#[test]
+fn landmarks_prints_points_distances_warnings_and_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("lm.json");
+    let src = common::gavab("cara1_frontal1.wrl");
+    let v = json_of(&facesynth(&[
+        "landmarks",
+        src.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]));
+    let lm = v["landmarks"].as_object().unwrap();
+    assert_eq!(lm.len(), 13);
+    let points: facesynth::Landmarks = serde_json::from_value(v["landmarks"].clone()).unwrap();
+    assert!(points.get(facesynth::FeaturePoint::NoseTip).z > -1250.0);
+    assert_eq!(v["distances_mm"].as_object().unwrap().len(), 9);
+    assert!(v["warnings"].is_array());
+    assert!(v["millis"].as_f64().unwrap() > 0.0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(saved["landmarks"], v["landmarks"]);
+}
+
+#[test]
+fn bench_landmarks_reports_stage_times() {
+    let src = common::gavab("cara1_frontal1.wrl");
+    let v = json_of(&facesynth(&[
+        "bench-landmarks",
+        src.to_str().unwrap(),
+        "--repeat",
+        "1",
+    ]));
+    assert_eq!(v["vertices"], 13709);
+    for k in ["denoise_ms", "landmarks_ms", "total_ms"] {
+        assert!(v[k]["min"].as_f64().unwrap() > 0.0, "{k}");
+    }
+}

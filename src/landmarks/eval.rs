@@ -1,0 +1,259 @@
+//! Scoring [`super::detect`] against the ground truth of `../shared/bench/synth_gavab.py`
+//! (`facesynth eval-landmarks DIR`).
+//!
+//! Error = 3D distance, mm, between a detected point and its ground truth, for the 9 points
+//! the generator provides (nose tip, eye corners, nose corners = iBUG 31/35, mouth corners,
+//! chin = iBUG 8). Points the generator marks as not visible (closed lids, out of view) are
+//! left out of the statistics and of the success test. A scan is a **success** when every
+//! scored point is within [`SUCCESS_RADIUS_MM`]; a scan where detection fails counts as a
+//! failure. Neutral scans (`frontal1`, `frontal2`) and expression scans (`sonrisa`, `risa`,
+//! `gesto`) are reported separately.
+//!
+//! # Measured (`facesynth eval-landmarks`, denoised first, default parameters)
+//!
+//! `synth_gavab.py --subjects 30 --seed 7` (150 noisy scans: spikes, holes, hair band,
+//! σ = 0.15 mm noise, ±6° pose). Error in mm; "≤ 10" = share of scans within 10 mm.
+//!
+//! | point | neutral (60) mean | p95 | max | ≤ 10 | expression (90) mean | p95 | max | ≤ 10 |
+//! |---|---|---|---|---|---|---|---|---|
+//! | nose tip | 2.26 | 3.65 | 4.0 | 100 % | 2.58 | 3.87 | 45.9 | 99 % |
+//! | inner eye left | 2.76 | 5.72 | 6.7 | 100 % | 2.97 | 5.32 | 34.5 | 99 % |
+//! | inner eye right | 2.61 | 5.34 | 7.7 | 100 % | 2.94 | 5.79 | 29.3 | 99 % |
+//! | outer eye left | 4.30 | 8.93 | 10.4 | 98 % | 4.66 | 8.87 | 50.9 | 96 % |
+//! | outer eye right | 4.57 | 7.89 | 9.2 | 100 % | 4.04 | 7.70 | 26.5 | 97 % |
+//! | nose corner left | 3.67 | 6.72 | 8.3 | 100 % | 3.76 | 11.28 | 47.8 | 94 % |
+//! | nose corner right | 3.70 | 5.94 | 8.1 | 100 % | 3.38 | 6.49 | 44.6 | 98 % |
+//! | mouth corner left | 3.24 | 7.50 | 8.0 | 100 % | 6.77 | 13.71 | 84.5 | 90 % |
+//! | mouth corner right | 3.71 | 8.97 | 13.8 | 97 % | 7.11 | 23.41 | 93.5 | 89 % |
+//! | chin | 3.08 | 5.49 | 10.0 | 98 % | 7.03 | 31.93 | 82.4 | 89 % |
+//!
+//! Success (all visible points within 10 mm): **neutral 93.3 %** (frontal1 28/30, frontal2
+//! 28/30) — short of the 97 % goal; expression 70.0 % (sonrisa 27/30, risa 20/30, gesto
+//! 16/30). Every scan gave 13 points (no detection failure). Outer eye corners are scored on
+//! 78 of 90 expression scans (the others are hidden by closed lids). What fails: mouth
+//! corners on puckered / sideways mouths (gesto) and open-mouth laughs (risa), and the chin
+//! on open-jaw laughs (the walk starts too high); on neutral scans the failures are single
+//! points just past 10 mm (an outer eye corner, a mouth corner).
+
+use super::{LandmarkParams, detect};
+use crate::denoise;
+use crate::feature_points::FeaturePoint;
+use crate::ground_truth::ScanTruth;
+use crate::{Error, Result, io};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A scan succeeds when all its scored points are within this distance, mm.
+pub const SUCCESS_RADIUS_MM: f64 = 10.0;
+
+/// One scan's outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScanResult {
+    /// File stem, e.g. `subj003_risa`.
+    pub stem: String,
+    /// `frontal1`, `frontal2`, `sonrisa`, `risa` or `gesto`.
+    pub scan: String,
+    /// Point name → error in mm (visible ground-truth points only).
+    pub errors_mm: BTreeMap<String, f64>,
+    /// The detected points (all 13), mm.
+    pub detected: BTreeMap<String, [f64; 3]>,
+    /// Every scored point within [`SUCCESS_RADIUS_MM`].
+    pub success: bool,
+    /// Detection error message, if detection failed.
+    pub failure: Option<String>,
+    /// Plausibility warnings of the detection.
+    pub warnings: Vec<String>,
+    /// Denoise + detection time, ms.
+    pub millis: f64,
+}
+
+impl ScanResult {
+    pub fn is_neutral(&self) -> bool {
+        self.scan.starts_with("frontal")
+    }
+}
+
+/// Error statistics of one point over a group of scans, mm.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PointStats {
+    /// Scans in which the point was scored.
+    pub n: usize,
+    pub mean_mm: f64,
+    pub p95_mm: f64,
+    pub max_mm: f64,
+    /// Fraction within [`SUCCESS_RADIUS_MM`].
+    pub within_10mm: f64,
+}
+
+/// Statistics of a group of scans (neutral or expression).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct GroupSummary {
+    pub scans: usize,
+    /// Scans where detection returned points.
+    pub detected: usize,
+    /// Fraction of scans with every scored point within 10 mm.
+    pub success_rate: f64,
+    pub points: BTreeMap<String, PointStats>,
+    pub mean_millis: f64,
+}
+
+/// The whole evaluation.
+#[derive(Debug, Clone, Serialize)]
+pub struct EvalReport {
+    pub dir: String,
+    pub denoised: bool,
+    pub scans: Vec<ScanResult>,
+}
+
+/// Both groups.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Summary {
+    pub neutral: GroupSummary,
+    pub expression: GroupSummary,
+}
+
+impl EvalReport {
+    pub fn summary(&self) -> Summary {
+        let group =
+            |neutral: bool| summarize(self.scans.iter().filter(|s| s.is_neutral() == neutral));
+        Summary {
+            neutral: group(true),
+            expression: group(false),
+        }
+    }
+}
+
+fn summarize<'a>(scans: impl Iterator<Item = &'a ScanResult>) -> GroupSummary {
+    let scans: Vec<&ScanResult> = scans.collect();
+    let mut per: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    for s in &scans {
+        if s.failure.is_some() {
+            continue;
+        }
+        for (k, e) in &s.errors_mm {
+            per.entry(k.clone()).or_default().push(*e);
+        }
+    }
+    let points = per
+        .into_iter()
+        .map(|(k, mut e)| {
+            e.sort_by(f64::total_cmp);
+            let n = e.len();
+            let p95 = e[((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1];
+            let stats = PointStats {
+                n,
+                mean_mm: e.iter().sum::<f64>() / n as f64,
+                p95_mm: p95,
+                max_mm: e[n - 1],
+                within_10mm: e.iter().filter(|&&x| x <= SUCCESS_RADIUS_MM).count() as f64
+                    / n as f64,
+            };
+            (k, stats)
+        })
+        .collect();
+    let total = scans.len().max(1) as f64;
+    GroupSummary {
+        scans: scans.len(),
+        detected: scans.iter().filter(|s| s.failure.is_none()).count(),
+        success_rate: scans.iter().filter(|s| s.success).count() as f64 / total,
+        points,
+        mean_millis: scans.iter().map(|s| s.millis).sum::<f64>() / total,
+    }
+}
+
+/// Scores one scan file (`stem.wrl`) against its ground truth (`stem.json`).
+pub fn evaluate_scan(
+    mesh_path: &Path,
+    truth: &ScanTruth,
+    denoise_first: bool,
+    params: &LandmarkParams,
+) -> Result<ScanResult> {
+    let mut mesh = io::read_mesh(mesh_path)?;
+    let start = std::time::Instant::now();
+    let found = (|| {
+        if denoise_first {
+            denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
+        }
+        detect(&mesh, params)
+    })();
+    let millis = start.elapsed().as_secs_f64() * 1e3;
+    let stem = mesh_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut out = ScanResult {
+        stem,
+        scan: truth.scan.clone(),
+        errors_mm: BTreeMap::new(),
+        detected: BTreeMap::new(),
+        success: false,
+        failure: None,
+        warnings: Vec::new(),
+        millis,
+    };
+    match found {
+        Err(e) => out.failure = Some(e.to_string()),
+        Ok(report) => {
+            for (p, xyz, t) in truth.feature_points() {
+                if t.visible {
+                    let e = (report.landmarks.get(p) - xyz).length();
+                    out.errors_mm.insert(p.name().to_string(), e);
+                }
+            }
+            out.success = out.errors_mm.values().all(|&e| e <= SUCCESS_RADIUS_MM);
+            out.warnings = report.warnings;
+            out.detected = report.landmarks.to_map();
+        }
+    }
+    Ok(out)
+}
+
+/// Scores every scan of a synth_gavab.py folder (in parallel over scans).
+pub fn evaluate_dir(
+    dir: &Path,
+    denoise_first: bool,
+    params: &LandmarkParams,
+) -> Result<EvalReport> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut stems: Vec<String> = rd
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "wrl"))
+        .filter(|p| p.with_extension("json").exists())
+        .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .collect();
+    stems.sort();
+    if stems.is_empty() {
+        return Err(Error::invalid(
+            dir,
+            "no scan with ground truth (NAME.wrl + NAME.json) in this folder",
+        ));
+    }
+    let scans = stems
+        .par_iter()
+        .map(|stem| {
+            let truth = ScanTruth::load(&dir.join(format!("{stem}.json")))?;
+            evaluate_scan(
+                &dir.join(format!("{stem}.wrl")),
+                &truth,
+                denoise_first,
+                params,
+            )
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(EvalReport {
+        dir: dir.display().to_string(),
+        denoised: denoise_first,
+        scans,
+    })
+}
+
+/// The 9 points with ground truth, in [`FeaturePoint::ALL`] order.
+pub fn scored_points() -> Vec<FeaturePoint> {
+    FeaturePoint::ALL
+        .into_iter()
+        .filter(|&p| crate::ground_truth::truth_name(p).is_some())
+        .collect()
+}
