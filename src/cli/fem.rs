@@ -100,6 +100,8 @@ pub fn synthesize(
         "factor_millis": round(model.timings.factor_millis, 3),
         "basis_millis": round(model.timings.basis_millis, 3),
         "min_scaled_jacobian": round(model.quality.min_scaled_jacobian, 4),
+        "thinned_vertices": model.extrusion.thinned_vertices,
+        "min_thickness_factor": round(model.extrusion.min_thickness_factor, 4),
         "mean_scaled_jacobian": round(model.quality.mean_scaled_jacobian, 4),
         "expressions": report,
     });

@@ -179,6 +179,8 @@ pub struct FaceModel {
     pub volume: HexMesh,
     /// Shape quality of `volume`'s elements.
     pub quality: ElementQuality,
+    /// What the extrusion changed to keep every element valid.
+    pub extrusion: layers::ExtrusionFix,
     fixed: Vec<bool>,
     system: ReducedSystem,
     solver: CachedCholesky,
@@ -210,7 +212,7 @@ impl FaceModel {
             .into());
         }
         let start = Instant::now();
-        let (volume, smoothing_rounds) = layers::extrude_valid(surface, &params.layers)?;
+        let (volume, extrusion) = layers::extrude_valid(surface, &params.layers)?;
         let quality = layers::element_quality(&volume);
         let fixed = default_fixed_nodes(surface);
         let system = ReducedSystem::new(
@@ -227,13 +229,14 @@ impl FaceModel {
             feature_vertices,
             params: FemParams {
                 layers: LayerParams {
-                    normal_smoothing_rounds: smoothing_rounds,
+                    normal_smoothing_rounds: extrusion.normal_smoothing_rounds,
                     ..params.layers
                 },
                 ..*params
             },
             volume,
             quality,
+            extrusion,
             fixed,
             system,
             solver,
