@@ -112,6 +112,24 @@ pub enum Command {
         #[arg(long)]
         presets: Option<PathBuf>,
     },
+    /// Learn an expression from a scan: fit the 18 muscle activations (non-negative least
+    /// squares) so the FEM face of NEUTRAL_SCAN meets EXPRESSION_SCAN; writes a preset (RON).
+    FitExpression {
+        neutral_scan: PathBuf,
+        expression_scan: PathBuf,
+        /// The neutral scan's 13 feature points as JSON (required until detection is wired in).
+        #[arg(long)]
+        landmarks: Option<PathBuf>,
+        /// The expression scan's feature points as JSON (optional: start of the rigid alignment).
+        #[arg(long)]
+        expression_landmarks: Option<PathBuf>,
+        /// Output preset file (.ron), loadable with `synthesize --presets`.
+        #[arg(long)]
+        out: PathBuf,
+        /// Preset name (default: the expression scan's file stem).
+        #[arg(long)]
+        name: Option<String>,
+    },
     /// Print timings as JSON.
     Bench {
         #[command(subcommand)]
@@ -244,6 +262,21 @@ pub fn run(cli: Cli) -> Result<()> {
             &expression,
             &vtk,
             presets.as_deref(),
+        )?),
+        Some(Command::FitExpression {
+            neutral_scan,
+            expression_scan,
+            landmarks,
+            expression_landmarks,
+            out,
+            name,
+        }) => print_json(&fem::fit_expression(
+            &neutral_scan,
+            &expression_scan,
+            landmarks.as_deref(),
+            expression_landmarks.as_deref(),
+            &out,
+            name.as_deref(),
         )?),
         Some(Command::Bench {
             what: BenchWhat::Fem,

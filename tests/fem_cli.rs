@@ -129,3 +129,60 @@ fn synthesize_on_a_registered_scan() {
         assert!((1.0..15.0).contains(&max), "{e}: {max}");
     }
 }
+
+#[test]
+fn fit_expression_writes_a_loadable_preset() {
+    let clean = common::synth_dataset(5, 1, true);
+    let neutral = clean.join("subj002_frontal1.wrl");
+    let smile = clean.join("subj002_sonrisa.wrl");
+    let dir = tempfile::tempdir().unwrap();
+    let mut lm_paths = Vec::new();
+    for (scan, name) in [(&neutral, "frontal1"), (&smile, "sonrisa")] {
+        let mesh = facesynth::io::read_mesh(scan).unwrap();
+        let truth = facesynth::registration::truth_points(
+            &clean.join(format!("subj002_{name}.json")),
+            &mesh,
+        )
+        .unwrap();
+        let path = dir.path().join(format!("{name}.json"));
+        std::fs::write(&path, serde_json::to_string(&truth.landmarks).unwrap()).unwrap();
+        lm_paths.push(path);
+    }
+    let preset = dir.path().join("smile.ron");
+    let v = run(&[
+        "fit-expression",
+        neutral.to_str().unwrap(),
+        smile.to_str().unwrap(),
+        "--landmarks",
+        lm_paths[0].to_str().unwrap(),
+        "--expression-landmarks",
+        lm_paths[1].to_str().unwrap(),
+        "--out",
+        preset.to_str().unwrap(),
+        "--name",
+        "learned_smile",
+    ]);
+    println!("{v}");
+    assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
+    assert!(v["closest_preset"].is_string());
+    assert_eq!(v["activations"].as_object().unwrap().len(), 18);
+    let set = facesynth::fem::expressions::ExpressionSet::load(&preset).unwrap();
+    assert_eq!(set.expressions[0].name, "learned_smile");
+    // The learned preset synthesizes like a built-in one.
+    let out = dir.path().join("out");
+    let s = run(&[
+        "synthesize",
+        "--out",
+        out.to_str().unwrap(),
+        "--presets",
+        preset.to_str().unwrap(),
+        "--expressions",
+        "learned_smile",
+    ]);
+    assert!(
+        s["expressions"]["learned_smile"]["max_displacement_mm"]
+            .as_f64()
+            .unwrap()
+            > 0.5
+    );
+}

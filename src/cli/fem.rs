@@ -21,10 +21,7 @@ pub fn face_for(scan: Option<&Path>, landmarks: Option<&Path>) -> Result<Generic
     let landmarks = landmarks.context(
         "--landmarks FILE.json is required with a scan (automatic feature-point detection is not wired in yet)",
     )?;
-    let text = std::fs::read_to_string(landmarks)
-        .with_context(|| format!("{}: cannot read", landmarks.display()))?;
-    let points: crate::Landmarks = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a landmark file", landmarks.display()))?;
+    let points = read_landmarks(landmarks)?;
     let mut mesh = io::read_mesh(scan)?;
     denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
     let params = crate::registration::RegistrationParams::default();
@@ -275,5 +272,77 @@ pub fn bench_fem() -> Result<serde_json::Value> {
             "combine_millis": combine, "symbolic_millis": analysis,
             "factor_millis": factor, "one_solve_millis": solve,
         },
+    }))
+}
+
+fn read_landmarks(path: &Path) -> Result<crate::Landmarks> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not a landmark file", path.display()))
+}
+
+/// `facesynth fit-expression`.
+pub fn fit_expression(
+    neutral: &Path,
+    expression: &Path,
+    landmarks: Option<&Path>,
+    expression_landmarks: Option<&Path>,
+    out: &Path,
+    name: Option<&str>,
+) -> Result<serde_json::Value> {
+    use crate::fem::expressions::Expression;
+    use crate::fem::fit::{FitParams, fit_expression};
+    let face = face_for(Some(neutral), landmarks)?;
+    let model = solved_model(&face, None)?;
+    let mut neutral_scan = io::read_mesh(neutral)?;
+    denoise::denoise(&mut neutral_scan, &denoise::DenoiseParams::default())?;
+    let mut scan = io::read_mesh(expression)?;
+    denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
+    let scan_landmarks = expression_landmarks.map(read_landmarks).transpose()?;
+    let presets = ExpressionSet::builtin();
+    let fit = fit_expression(
+        &model,
+        Some(&neutral_scan),
+        &scan,
+        scan_landmarks.as_ref(),
+        &presets,
+        &FitParams::default(),
+    )?;
+    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let activations: std::collections::BTreeMap<String, f64> = names
+        .iter()
+        .zip(&fit.activations)
+        .map(|(n, &a)| (n.clone(), round(a, 4)))
+        .collect();
+    let name = name.map(str::to_string).unwrap_or_else(|| {
+        expression
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "fitted".into())
+    });
+    let preset = crate::fem::expressions::ExpressionSet {
+        expressions: vec![Expression {
+            name: name.clone(),
+            description: format!("fitted to {}", expression.display()),
+            action_units: Vec::new(),
+            activations: activations.clone(),
+        }],
+    };
+    let text = ron::ser::to_string_pretty(&preset, ron::ser::PrettyConfig::default())?;
+    io::write_text_atomic(out, &(text + "\n"))?;
+    let (closest, closest_rms) = fit
+        .closest_preset
+        .map(|(n, r)| (Some(n), Some(round(r, 4))))
+        .unwrap_or((None, None));
+    Ok(json!({
+        "name": name,
+        "out": out,
+        "activations": activations,
+        "rms_before_mm": round(fit.rms_before_mm, 4),
+        "rms_after_mm": round(fit.rms_after_mm, 4),
+        "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
+        "closest_preset": closest,
+        "closest_preset_rms_mm": closest_rms,
+        "vertices_used": fit.vertices_used,
     }))
 }

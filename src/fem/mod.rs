@@ -16,6 +16,7 @@
 
 pub mod assembly;
 pub mod expressions;
+pub mod fit;
 pub mod hex8;
 pub mod layers;
 pub mod muscles;
