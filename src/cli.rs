@@ -94,6 +94,9 @@ pub enum Command {
         /// Muscle definitions (RON, like assets/muscles.ron) instead of the built-in ones.
         #[arg(long)]
         muscles: Option<PathBuf>,
+        /// Also write a front-view PNG per expression, coloured by displacement (0–10 mm).
+        #[arg(long)]
+        png: bool,
     },
     /// Export the FEM model with one expression's displacements as legacy VTK (ParaView).
     ExportFem {
@@ -242,6 +245,7 @@ pub fn run(cli: Cli) -> Result<()> {
             expressions,
             presets,
             muscles,
+            png,
         }) => print_json(&fem::synthesize(
             scan.as_deref(),
             landmarks.as_deref(),
@@ -249,6 +253,7 @@ pub fn run(cli: Cli) -> Result<()> {
             &expressions,
             presets.as_deref(),
             muscles.as_deref(),
+            png,
         )?),
         Some(Command::ExportFem {
             scan,

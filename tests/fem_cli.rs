@@ -27,8 +27,15 @@ fn synthesize_generic_writes_meshes_and_report() {
         out.to_str().unwrap(),
         "--expressions",
         "happiness,frown",
+        "--png",
     ]);
-    for name in ["neutral.obj", "happiness.obj", "frown.obj", "report.json"] {
+    for name in [
+        "neutral.obj",
+        "happiness.obj",
+        "frown.obj",
+        "report.json",
+        "happiness.png",
+    ] {
         assert!(out.join(name).is_file(), "{name} missing");
     }
     let report: serde_json::Value =

@@ -67,6 +67,7 @@ pub fn synthesize(
     expressions: &str,
     presets: Option<&Path>,
     muscles: Option<&Path>,
+    png: bool,
 ) -> Result<serde_json::Value> {
     let face = face_for(scan, landmarks)?;
     let set = expression_set(presets)?;
@@ -82,10 +83,13 @@ pub fn synthesize(
         model.combine_surface(&a, &mut u)?;
         let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
         let mean = u.iter().map(|d| d.length()).sum::<f64>() / u.len().max(1) as f64;
-        io::write_mesh(
-            &out.join(format!("{}.obj", e.name)),
-            &model.deformed_surface(&a)?,
-        )?;
+        let deformed = model.deformed_surface(&a)?;
+        io::write_mesh(&out.join(format!("{}.obj", e.name)), &deformed)?;
+        if png {
+            let magnitude: Vec<f64> = u.iter().map(|d| d.length()).collect();
+            let img = crate::fem::picture::render_front(&deformed, &magnitude, 10.0, 480);
+            crate::fem::picture::save_png(&out.join(format!("{}.png", e.name)), &img)?;
+        }
         report.insert(
             e.name.clone(),
             json!({"max_displacement_mm": round(max, 4), "mean_displacement_mm": round(mean, 4)}),

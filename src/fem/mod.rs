@@ -20,6 +20,7 @@ pub mod fit;
 pub mod hex8;
 pub mod layers;
 pub mod muscles;
+pub mod picture;
 pub mod solver;
 pub mod vtk;
 
