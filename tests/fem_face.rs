@@ -218,3 +218,9 @@ fn ill_posed_systems_are_clear_errors() {
     // The model keeps its previous, valid state.
     model.factor().unwrap();
 }
+
+#[test]
+fn the_model_can_live_on_a_worker_thread() {
+    fn send_sync<T: Send + Sync + Clone>() {}
+    send_sync::<FaceModel>();
+}

@@ -188,6 +188,7 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "dofs": model.dofs(),
         "elements": model.elements(),
         "nonzeros_upper": model.system().nonzeros(),
+        "extrusion_millis": round(model.timings.extrusion_millis, 3),
         "assembly_millis": round(model.timings.assembly_millis, 3),
         "build_millis": build_millis,
         "symbolic_analysis_millis": round(model.timings.analysis_millis, 3),

@@ -158,6 +158,8 @@ impl Default for FemParams {
 /// Wall-clock times of the last operations, milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
+    /// Layer extrusion (normal smoothing, inversion checks) and element quality.
+    pub extrusion_millis: f64,
     /// Pattern + scatter map + unit matrices (per-element stiffness).
     pub assembly_millis: f64,
     /// Symbolic analysis (once per pattern).
@@ -216,6 +218,8 @@ impl FaceModel {
         let start = Instant::now();
         let (volume, extrusion) = layers::extrude_valid(surface, &params.layers)?;
         let quality = layers::element_quality(&volume);
+        let extrusion_millis = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
         let fixed = default_fixed_nodes(surface);
         let system = ReducedSystem::new(
             &volume,
@@ -245,6 +249,7 @@ impl FaceModel {
             muscles: Vec::new(),
             basis: Vec::new(),
             timings: Timings {
+                extrusion_millis,
                 assembly_millis,
                 analysis_millis,
                 ..Timings::default()
