@@ -128,7 +128,7 @@ impl Material {
     }
 }
 
-/// Parameters of the face model. Defaults are the paper's (section 2, after its ref. [14]).
+/// Parameters of the face model. Defaults are the paper's (section 2, after its ref. 14).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FemParams {
     /// Layer thicknesses (default skin 3 mm + fat 9 mm).
