@@ -94,6 +94,9 @@ pub enum Command {
         /// Muscle definitions (RON, like assets/muscles.ron) instead of the built-in ones.
         #[arg(long)]
         muscles: Option<PathBuf>,
+        /// Also write a front-view PNG per expression, coloured by displacement (0–10 mm).
+        #[arg(long)]
+        png: bool,
     },
     /// Export the FEM model with one expression's displacements as legacy VTK (ParaView).
     ExportFem {
@@ -111,6 +114,24 @@ pub enum Command {
         /// Extra presets (RON).
         #[arg(long)]
         presets: Option<PathBuf>,
+    },
+    /// Learn an expression from a scan: fit the 18 muscle activations (non-negative least
+    /// squares) so the FEM face of NEUTRAL_SCAN meets EXPRESSION_SCAN; writes a preset (RON).
+    FitExpression {
+        neutral_scan: PathBuf,
+        expression_scan: PathBuf,
+        /// The neutral scan's 13 feature points as JSON (required until detection is wired in).
+        #[arg(long)]
+        landmarks: Option<PathBuf>,
+        /// The expression scan's feature points as JSON (optional: start of the rigid alignment).
+        #[arg(long)]
+        expression_landmarks: Option<PathBuf>,
+        /// Output preset file (.ron), loadable with `synthesize --presets`.
+        #[arg(long)]
+        out: PathBuf,
+        /// Preset name (default: the expression scan's file stem).
+        #[arg(long)]
+        name: Option<String>,
     },
     /// Print timings as JSON.
     Bench {
@@ -325,6 +346,7 @@ pub fn run(cli: Cli) -> Result<()> {
             expressions,
             presets,
             muscles,
+            png,
         }) => print_json(&fem::synthesize(
             scan.as_deref(),
             landmarks.as_deref(),
@@ -332,6 +354,7 @@ pub fn run(cli: Cli) -> Result<()> {
             &expressions,
             presets.as_deref(),
             muscles.as_deref(),
+            png,
         )?),
         Some(Command::ExportFem {
             scan,
@@ -345,6 +368,21 @@ pub fn run(cli: Cli) -> Result<()> {
             &expression,
             &vtk,
             presets.as_deref(),
+        )?),
+        Some(Command::FitExpression {
+            neutral_scan,
+            expression_scan,
+            landmarks,
+            expression_landmarks,
+            out,
+            name,
+        }) => print_json(&fem::fit_expression(
+            &neutral_scan,
+            &expression_scan,
+            landmarks.as_deref(),
+            expression_landmarks.as_deref(),
+            &out,
+            name.as_deref(),
         )?),
         Some(Command::Bench {
             what: BenchWhat::Fem,

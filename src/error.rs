@@ -38,7 +38,13 @@ pub enum Error {
     Algorithm { step: &'static str, message: String },
     /// The finite-element face model is ill-posed or its inputs are invalid.
     #[error("fem: {0}")]
-    Fem(#[from] FemError),
+    Fem(FemError),
+}
+
+impl From<FemError> for Error {
+    fn from(e: FemError) -> Self {
+        Error::Fem(e)
+    }
 }
 
 /// Why the finite-element model (src/fem) cannot be built or solved. Each variant says what to

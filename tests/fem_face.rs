@@ -197,6 +197,17 @@ fn ill_posed_systems_are_clear_errors() {
         Err(Error::Fem(FemError::InvertedElement { .. })) => {}
         other => panic!("expected an inverted element, got {:?}", other.map(|_| ())),
     }
+    // An inverted element handed to the assembly directly.
+    let mut block = facesynth::fem::HexMesh::block(DVec3::splat(10.0), 2, 1, 1);
+    block.elements[1].swap(0, 4);
+    block.elements[1].swap(1, 5);
+    block.elements[1].swap(2, 6);
+    block.elements[1].swap(3, 7);
+    let fixed: Vec<bool> = block.nodes_mm.iter().map(|p| p.x == 0.0).collect();
+    assert!(matches!(
+        facesynth::fem::assembly::ReducedSystem::new(&block, &fixed, &[0.45]),
+        Err(Error::Fem(FemError::InvertedElement { element: 1, .. }))
+    ));
     // One fixed node leaves rotations free: rejected before factoring.
     let mut one = vec![false; model.volume.nodes_mm.len()];
     one[0] = true;
@@ -206,4 +217,10 @@ fn ill_posed_systems_are_clear_errors() {
     ));
     // The model keeps its previous, valid state.
     model.factor().unwrap();
+}
+
+#[test]
+fn the_model_can_live_on_a_worker_thread() {
+    fn send_sync<T: Send + Sync + Clone>() {}
+    send_sync::<FaceModel>();
 }

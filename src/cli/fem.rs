@@ -21,10 +21,7 @@ pub fn face_for(scan: Option<&Path>, landmarks: Option<&Path>) -> Result<Generic
     let landmarks = landmarks.context(
         "--landmarks FILE.json is required with a scan (automatic feature-point detection is not wired in yet)",
     )?;
-    let text = std::fs::read_to_string(landmarks)
-        .with_context(|| format!("{}: cannot read", landmarks.display()))?;
-    let points: crate::Landmarks = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a landmark file", landmarks.display()))?;
+    let points = read_landmarks(landmarks)?;
     let mut mesh = io::read_mesh(scan)?;
     denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
     let params = crate::registration::RegistrationParams::default();
@@ -70,6 +67,7 @@ pub fn synthesize(
     expressions: &str,
     presets: Option<&Path>,
     muscles: Option<&Path>,
+    png: bool,
 ) -> Result<serde_json::Value> {
     let face = face_for(scan, landmarks)?;
     let set = expression_set(presets)?;
@@ -85,10 +83,13 @@ pub fn synthesize(
         model.combine_surface(&a, &mut u)?;
         let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
         let mean = u.iter().map(|d| d.length()).sum::<f64>() / u.len().max(1) as f64;
-        io::write_mesh(
-            &out.join(format!("{}.obj", e.name)),
-            &model.deformed_surface(&a)?,
-        )?;
+        let deformed = model.deformed_surface(&a)?;
+        io::write_mesh(&out.join(format!("{}.obj", e.name)), &deformed)?;
+        if png {
+            let magnitude: Vec<f64> = u.iter().map(|d| d.length()).collect();
+            let img = crate::fem::picture::render_front(&deformed, &magnitude, 10.0, 480);
+            crate::fem::picture::save_png(&out.join(format!("{}.png", e.name)), &img)?;
+        }
         report.insert(
             e.name.clone(),
             json!({"max_displacement_mm": round(max, 4), "mean_displacement_mm": round(mean, 4)}),
@@ -100,6 +101,8 @@ pub fn synthesize(
         "factor_millis": round(model.timings.factor_millis, 3),
         "basis_millis": round(model.timings.basis_millis, 3),
         "min_scaled_jacobian": round(model.quality.min_scaled_jacobian, 4),
+        "thinned_vertices": model.extrusion.thinned_vertices,
+        "min_thickness_factor": round(model.extrusion.min_thickness_factor, 4),
         "mean_scaled_jacobian": round(model.quality.mean_scaled_jacobian, 4),
         "expressions": report,
     });
@@ -185,6 +188,7 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "dofs": model.dofs(),
         "elements": model.elements(),
         "nonzeros_upper": model.system().nonzeros(),
+        "extrusion_millis": round(model.timings.extrusion_millis, 3),
         "assembly_millis": round(model.timings.assembly_millis, 3),
         "build_millis": build_millis,
         "symbolic_analysis_millis": round(model.timings.analysis_millis, 3),
@@ -273,5 +277,77 @@ pub fn bench_fem() -> Result<serde_json::Value> {
             "combine_millis": combine, "symbolic_millis": analysis,
             "factor_millis": factor, "one_solve_millis": solve,
         },
+    }))
+}
+
+fn read_landmarks(path: &Path) -> Result<crate::Landmarks> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not a landmark file", path.display()))
+}
+
+/// `facesynth fit-expression`.
+pub fn fit_expression(
+    neutral: &Path,
+    expression: &Path,
+    landmarks: Option<&Path>,
+    expression_landmarks: Option<&Path>,
+    out: &Path,
+    name: Option<&str>,
+) -> Result<serde_json::Value> {
+    use crate::fem::expressions::Expression;
+    use crate::fem::fit::{FitParams, fit_expression};
+    let face = face_for(Some(neutral), landmarks)?;
+    let model = solved_model(&face, None)?;
+    let mut neutral_scan = io::read_mesh(neutral)?;
+    denoise::denoise(&mut neutral_scan, &denoise::DenoiseParams::default())?;
+    let mut scan = io::read_mesh(expression)?;
+    denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
+    let scan_landmarks = expression_landmarks.map(read_landmarks).transpose()?;
+    let presets = ExpressionSet::builtin();
+    let fit = fit_expression(
+        &model,
+        Some(&neutral_scan),
+        &scan,
+        scan_landmarks.as_ref(),
+        &presets,
+        &FitParams::default(),
+    )?;
+    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let activations: std::collections::BTreeMap<String, f64> = names
+        .iter()
+        .zip(&fit.activations)
+        .map(|(n, &a)| (n.clone(), round(a, 4)))
+        .collect();
+    let name = name.map(str::to_string).unwrap_or_else(|| {
+        expression
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "fitted".into())
+    });
+    let preset = crate::fem::expressions::ExpressionSet {
+        expressions: vec![Expression {
+            name: name.clone(),
+            description: format!("fitted to {}", expression.display()),
+            action_units: Vec::new(),
+            activations: activations.clone(),
+        }],
+    };
+    let text = ron::ser::to_string_pretty(&preset, ron::ser::PrettyConfig::default())?;
+    io::write_text_atomic(out, &(text + "\n"))?;
+    let (closest, closest_rms) = fit
+        .closest_preset
+        .map(|(n, r)| (Some(n), Some(round(r, 4))))
+        .unwrap_or((None, None));
+    Ok(json!({
+        "name": name,
+        "out": out,
+        "activations": activations,
+        "rms_before_mm": round(fit.rms_before_mm, 4),
+        "rms_after_mm": round(fit.rms_after_mm, 4),
+        "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
+        "closest_preset": closest,
+        "closest_preset_rms_mm": closest_rms,
+        "vertices_used": fit.vertices_used,
     }))
 }

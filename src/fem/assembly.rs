@@ -142,31 +142,41 @@ impl ReducedSystem {
         if self.unit_poisson[g] == poisson_ratio {
             return Ok(());
         }
+        use rayon::prelude::*;
         let values = &mut self.unit_values[g];
         values.iter_mut().for_each(|v| *v = 0.0);
-        for (e, element) in mesh.elements.iter().enumerate() {
-            if mesh.element_group[e] as usize != g {
-                continue;
-            }
-            let nodes = element.map(|n| mesh.nodes_mm[n as usize]);
-            let k =
-                hex8::element_stiffness(&nodes, 1.0, poisson_ratio).map_err(|err| match err {
-                    ElementError::Inverted { min_det } => FemError::InvertedElement {
-                        element: e,
-                        min_jacobian_det: min_det,
-                    },
-                    ElementError::Material => FemError::InvalidMaterial {
-                        layer: mesh.group_names.get(g).cloned().unwrap_or_default(),
-                        young_modulus_pa: 1.0,
-                        poisson_ratio,
-                    },
-                })?;
-            let map = &self.scatter[576 * e..576 * (e + 1)];
-            for p in 0..24 {
-                for q in 0..24 {
-                    let slot = map[24 * p + q];
-                    if slot != NONE {
-                        values[slot as usize] += k[(p, q)];
+        let group: Vec<usize> = (0..mesh.elements.len())
+            .filter(|&e| mesh.element_group[e] as usize == g)
+            .collect();
+        // Element matrices in parallel, a chunk at a time (bounded memory); scatter serially
+        // so the sums are deterministic for any thread count.
+        for chunk in group.chunks(512) {
+            let ks: Vec<hex8::ElementStiffness> = chunk
+                .par_iter()
+                .map(|&e| {
+                    hex8::element_stiffness(&mesh.element_nodes(e), 1.0, poisson_ratio).map_err(
+                        |err| match err {
+                            ElementError::Inverted { min_det } => FemError::InvertedElement {
+                                element: e,
+                                min_jacobian_det: min_det,
+                            },
+                            ElementError::Material => FemError::InvalidMaterial {
+                                layer: mesh.group_names.get(g).cloned().unwrap_or_default(),
+                                young_modulus_pa: 1.0,
+                                poisson_ratio,
+                            },
+                        },
+                    )
+                })
+                .collect::<std::result::Result<_, FemError>>()?;
+            for (&e, k) in chunk.iter().zip(&ks) {
+                let map = &self.scatter[576 * e..576 * (e + 1)];
+                for p in 0..24 {
+                    for q in 0..24 {
+                        let slot = map[24 * p + q];
+                        if slot != NONE {
+                            values[slot as usize] += k[(p, q)];
+                        }
                     }
                 }
             }

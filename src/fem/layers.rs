@@ -36,9 +36,18 @@ pub struct LayerParams {
     /// 12 mm offset folds under the nose, lips, chin and eye rims (198 inverted elements on the
     /// generic face; 2 rounds: 142; 8: 38; 20: none).
     pub normal_smoothing_rounds: usize,
-    /// If elements still invert, the rounds are doubled up to this many (default 160) before
-    /// giving up with [`FemError::InvertedElement`].
+    /// If local thinning cannot stop elements inverting, the rounds are doubled up to this many
+    /// (default 160) before giving up with [`FemError::InvertedElement`].
     pub max_smoothing_rounds: usize,
+    /// Rounds of umbrella (Laplacian, λ = ½) smoothing of the cranium node layer (default 0).
+    /// Smoothing it untangles folds of the fat layer in creases (under the nose, the lip
+    /// line) that smoother directions alone cannot; the cranium layer becomes smoother than
+    /// the skin, as the skull is.
+    pub layer_smoothing_rounds: usize,
+    /// At most this fraction of the surface vertices may be thinned locally by
+    /// [`extrude_valid`] (default 0.05); beyond that the thickness itself is the problem and
+    /// the extrusion fails with [`FemError::InvertedElement`].
+    pub max_thinned_fraction: f64,
 }
 
 impl Default for LayerParams {
@@ -48,6 +57,8 @@ impl Default for LayerParams {
             fat_thickness_mm: 9.0,
             normal_smoothing_rounds: 20,
             max_smoothing_rounds: 160,
+            layer_smoothing_rounds: 0,
+            max_thinned_fraction: 0.05,
         }
     }
 }
@@ -88,31 +99,77 @@ fn offset_directions(surface: &Mesh, rounds: usize) -> Vec<DVec3> {
     normals
 }
 
-/// Extrudes `surface` with [`LayerParams::normal_smoothing_rounds`], doubling the smoothing
-/// while any element inverts (up to [`LayerParams::max_smoothing_rounds`]). Returns the volume
-/// and the rounds used; errors with [`FemError::InvertedElement`] if smoothing cannot fix it.
-pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, usize)> {
+/// What [`extrude_valid`] had to do to avoid inverted elements.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct ExtrusionFix {
+    /// Normal-smoothing rounds finally used.
+    pub normal_smoothing_rounds: usize,
+    /// Surface vertices whose layer thickness was reduced locally.
+    pub thinned_vertices: usize,
+    /// Smallest remaining thickness factor (1 = as requested).
+    pub min_thickness_factor: f64,
+}
+
+/// Extrudes `surface` so that no element inverts, with
+/// [`LayerParams::normal_smoothing_rounds`]. Where elements invert (creases of a registered
+/// scan, e.g. under the nostrils) the layer thickness is reduced **locally**: the corners of
+/// each inverted element get ×0.85 per pass, down to 0.2 of the requested thickness. If that
+/// is not enough, the smoothing rounds are doubled (up to
+/// [`LayerParams::max_smoothing_rounds`]) and thinning starts over. Errors with
+/// [`FemError::InvertedElement`] when nothing helps.
+pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, ExtrusionFix)> {
+    let n = surface.vertex_count();
+    let first_inverted = |mesh: &HexMesh| {
+        (0..mesh.elements.len())
+            .map(|e| (e, hex8::min_gauss_jacobian_det(&mesh.element_nodes(e))))
+            .filter(|(_, det)| !(*det > 0.0))
+            .collect::<Vec<_>>()
+    };
     let mut rounds = params.normal_smoothing_rounds;
+    let mut scale = vec![1.0; n];
     loop {
         let p = LayerParams {
             normal_smoothing_rounds: rounds,
             ..*params
         };
-        let mesh = extrude(surface, &p)?;
-        let inverted = (0..mesh.elements.len())
-            .map(|e| (e, hex8::min_gauss_jacobian_det(&mesh.element_nodes(e))))
-            .find(|(_, det)| !(*det > 0.0));
-        match inverted {
-            None => return Ok((mesh, rounds)),
-            Some((element, det)) if rounds >= params.max_smoothing_rounds => {
-                return Err(FemError::InvertedElement {
-                    element,
-                    min_jacobian_det: det,
-                }
-                .into());
-            }
-            Some(_) => rounds = (2 * rounds).clamp(1, params.max_smoothing_rounds),
+        let mesh = extrude_scaled(surface, &p, &scale)?;
+        let inverted = first_inverted(&mesh);
+        if inverted.is_empty() {
+            let thinned = scale.iter().filter(|&&s| s < 1.0).count();
+            return Ok((
+                mesh,
+                ExtrusionFix {
+                    normal_smoothing_rounds: rounds,
+                    thinned_vertices: thinned,
+                    min_thickness_factor: scale.iter().copied().fold(1.0, f64::min),
+                },
+            ));
         }
+        let mut changed = false;
+        for &(e, _) in &inverted {
+            for &node in &mesh.elements[e] {
+                let v = node as usize % n;
+                if scale[v] > 0.2 {
+                    scale[v] = (scale[v] * 0.85).max(0.2);
+                    changed = true;
+                }
+            }
+        }
+        let thinned = scale.iter().filter(|&&s| s < 1.0).count();
+        if changed && thinned as f64 <= params.max_thinned_fraction * n as f64 {
+            continue;
+        }
+        if rounds < params.max_smoothing_rounds {
+            rounds = (2 * rounds).clamp(1, params.max_smoothing_rounds);
+            scale.iter_mut().for_each(|s| *s = 1.0);
+            continue;
+        }
+        let (element, det) = inverted[0];
+        return Err(FemError::InvertedElement {
+            element,
+            min_jacobian_det: det,
+        }
+        .into());
     }
 }
 
@@ -120,6 +177,11 @@ pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, u
 /// Fails on a polygon with more than 4 corners, bad thicknesses, or a vertex without a normal.
 /// Inversion is *checked* by [`element_quality`] (and rejected at assembly), not here.
 pub fn extrude(surface: &Mesh, params: &LayerParams) -> Result<HexMesh> {
+    extrude_scaled(surface, params, &vec![1.0; surface.vertex_count()])
+}
+
+/// [`extrude`] with a per-vertex factor on both layer thicknesses.
+fn extrude_scaled(surface: &Mesh, params: &LayerParams, scale: &[f64]) -> Result<HexMesh> {
     let positive = |t: f64| t > 0.0 && t.is_finite();
     if !(positive(params.skin_thickness_mm) && positive(params.fat_thickness_mm)) {
         return Err(FemError::Definition(format!(
@@ -142,8 +204,29 @@ pub fn extrude(surface: &Mesh, params: &LayerParams) -> Result<HexMesh> {
         params.skin_thickness_mm,
         params.skin_thickness_mm + params.fat_thickness_mm,
     ];
-    for depth in depths {
-        nodes_mm.extend((0..n).map(|v| surface.positions_mm[v] - directions[v] * depth));
+    let topology = (params.layer_smoothing_rounds > 0).then(|| crate::mesh::Topology::new(surface));
+    for (k, depth) in depths.into_iter().enumerate() {
+        let mut layer: Vec<DVec3> = (0..n)
+            .map(|v| surface.positions_mm[v] - directions[v] * (depth * scale[v]))
+            .collect();
+        // Only the cranium layer is smoothed: the 3 mm skin layer folds nowhere, and smoothing
+        // the interface layer pulls it through the skin under the nostrils.
+        if let (Some(topology), 1) = (&topology, k) {
+            for _ in 0..params.layer_smoothing_rounds {
+                layer = (0..n)
+                    .map(|v| {
+                        let ring = topology.neighbours(v);
+                        if ring.is_empty() {
+                            return layer[v];
+                        }
+                        let mean = ring.iter().map(|&w| layer[w as usize]).sum::<DVec3>()
+                            / ring.len() as f64;
+                        (layer[v] + mean) * 0.5
+                    })
+                    .collect();
+            }
+        }
+        nodes_mm.extend(layer);
     }
     let mut elements = Vec::with_capacity(2 * surface.face_count());
     let mut element_group = Vec::with_capacity(2 * surface.face_count());
@@ -208,8 +291,12 @@ mod tests {
     #[test]
     fn generic_face_extrudes_without_inversion() {
         let face = crate::generic_face::build();
-        let (mesh, rounds) = extrude_valid(&face.mesh, &LayerParams::default()).unwrap();
-        assert_eq!(rounds, LayerParams::default().normal_smoothing_rounds);
+        let (mesh, fix) = extrude_valid(&face.mesh, &LayerParams::default()).unwrap();
+        assert_eq!(
+            fix.normal_smoothing_rounds,
+            LayerParams::default().normal_smoothing_rounds
+        );
+        assert_eq!(fix.thinned_vertices, 0);
         assert_eq!(mesh.nodes_mm.len(), 3 * face.mesh.vertex_count());
         assert_eq!(mesh.elements.len(), 2 * face.mesh.face_count());
         let q = element_quality(&mesh);

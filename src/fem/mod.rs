@@ -16,9 +16,11 @@
 
 pub mod assembly;
 pub mod expressions;
+pub mod fit;
 pub mod hex8;
 pub mod layers;
 pub mod muscles;
+pub mod picture;
 pub mod solver;
 pub mod vtk;
 
@@ -126,7 +128,7 @@ impl Material {
     }
 }
 
-/// Parameters of the face model. Defaults are the paper's (section 2, after its ref. [14]).
+/// Parameters of the face model. Defaults are the paper's (section 2, after its ref. 14).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FemParams {
     /// Layer thicknesses (default skin 3 mm + fat 9 mm).
@@ -156,6 +158,8 @@ impl Default for FemParams {
 /// Wall-clock times of the last operations, milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
+    /// Layer extrusion (normal smoothing, inversion checks) and element quality.
+    pub extrusion_millis: f64,
     /// Pattern + scatter map + unit matrices (per-element stiffness).
     pub assembly_millis: f64,
     /// Symbolic analysis (once per pattern).
@@ -179,6 +183,8 @@ pub struct FaceModel {
     pub volume: HexMesh,
     /// Shape quality of `volume`'s elements.
     pub quality: ElementQuality,
+    /// What the extrusion changed to keep every element valid.
+    pub extrusion: layers::ExtrusionFix,
     fixed: Vec<bool>,
     system: ReducedSystem,
     solver: CachedCholesky,
@@ -210,8 +216,10 @@ impl FaceModel {
             .into());
         }
         let start = Instant::now();
-        let (volume, smoothing_rounds) = layers::extrude_valid(surface, &params.layers)?;
+        let (volume, extrusion) = layers::extrude_valid(surface, &params.layers)?;
         let quality = layers::element_quality(&volume);
+        let extrusion_millis = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
         let fixed = default_fixed_nodes(surface);
         let system = ReducedSystem::new(
             &volume,
@@ -227,19 +235,21 @@ impl FaceModel {
             feature_vertices,
             params: FemParams {
                 layers: LayerParams {
-                    normal_smoothing_rounds: smoothing_rounds,
+                    normal_smoothing_rounds: extrusion.normal_smoothing_rounds,
                     ..params.layers
                 },
                 ..*params
             },
             volume,
             quality,
+            extrusion,
             fixed,
             system,
             solver,
             muscles: Vec::new(),
             basis: Vec::new(),
             timings: Timings {
+                extrusion_millis,
                 assembly_millis,
                 analysis_millis,
                 ..Timings::default()

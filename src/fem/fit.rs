@@ -1,0 +1,345 @@
+//! Learning an expression from a scan (paper: "additional expressions can be learned from
+//! input faces"): given the FEM face of a person's neutral scan and a scan of the same person
+//! with an expression, align the expression scan rigidly on stable regions (upper forehead and
+//! nose), then fit the 18 muscle activations by non-negative least squares so that the
+//! synthesized surface meets the scan, re-taking closest points a few times. The fit is
+//! point-to-plane (along the model's vertex normals): a surface scan shows where the skin is,
+//! not how far it slid along itself.
+
+use super::FaceModel;
+use super::expressions::ExpressionSet;
+use super::muscles::FaceFrame;
+use crate::feature_points::{FeaturePoint, Landmarks};
+use crate::registration::{SurfaceIndex, horn_absolute_orientation};
+use crate::{FemError, Mesh, Result};
+use glam::DVec3;
+
+/// Parameters of [`fit_expression`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitParams {
+    /// Rigid ICP rounds on the stable region (default 30).
+    pub icp_rounds: usize,
+    /// Closest-point / NNLS rounds of the activation fit (default 5).
+    pub fit_rounds: usize,
+    /// Model vertices farther than this from the scan are left out (holes, hair), mm
+    /// (default 8).
+    pub max_distance_mm: f64,
+    /// With the neutral scan given, model vertices farther than this from it (where the
+    /// registration did not reach the scan) are left out, mm (default 1.5).
+    pub max_neutral_error_mm: f64,
+    /// Ridge weight on the activations, relative to the mean diagonal of the normal matrix
+    /// (default 1e-4); keeps muscles the data cannot see at zero.
+    pub ridge: f64,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        FitParams {
+            icp_rounds: 30,
+            fit_rounds: 5,
+            max_distance_mm: 8.0,
+            max_neutral_error_mm: 1.5,
+            ridge: 1e-4,
+        }
+    }
+}
+
+/// What [`fit_expression`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitResult {
+    /// One non-negative activation per muscle (model order).
+    pub activations: Vec<f64>,
+    /// RMS distance of the neutral model surface to the aligned expression scan, mm.
+    pub rms_before_mm: f64,
+    /// RMS distance of the fitted expression to the scan, mm (the best fit round; never above
+    /// `rms_before_mm`).
+    pub rms_after_mm: f64,
+    /// With the neutral scan given: RMS distance of the model to its own neutral scan over the
+    /// same vertices — the registration's floor under any fit, mm.
+    pub rms_neutral_scan_mm: Option<f64>,
+    /// The preset whose synthesized surface is closest to the scan, and its RMS distance.
+    pub closest_preset: Option<(String, f64)>,
+    /// Model vertices used in the fit.
+    pub vertices_used: usize,
+    /// The expression scan moved into the model's frame.
+    pub aligned_scan: Mesh,
+}
+
+/// Stable vertices for rigid alignment: the upper forehead and the nose.
+fn stable_vertices(model: &FaceModel) -> Result<Vec<usize>> {
+    let s = &model.surface;
+    let pos = |p: FeaturePoint| s.positions_mm[model.feature_vertices[p.index()] as usize];
+    let frame = FaceFrame::new(pos)?;
+    let nose = pos(FeaturePoint::NoseTip);
+    Ok((0..s.vertex_count())
+        .filter(|&v| {
+            let d = s.positions_mm[v] - nose;
+            d.dot(frame.y) > 0.75 * frame.scale_y_mm || d.length() < 0.3 * frame.scale_xz_mm
+        })
+        .collect())
+}
+
+fn transform(mesh: &Mesh, t: &crate::registration::Similarity) -> Mesh {
+    Mesh::new(
+        mesh.positions_mm.iter().map(|&p| t.apply(p)).collect(),
+        mesh.faces.clone(),
+    )
+}
+
+/// Moves `scan` into the frame of `model` rigidly: Horn on the stable landmarks if given, then
+/// ICP of the stable region of `reference_mm` (the model surface, possibly already deformed by
+/// the current expression estimate: one position per surface vertex).
+pub fn align_scan(
+    model: &FaceModel,
+    reference_mm: &[DVec3],
+    scan: &Mesh,
+    scan_landmarks: Option<&Landmarks>,
+    params: &FitParams,
+) -> Result<Mesh> {
+    let mut aligned = scan.clone();
+    if let Some(lm) = scan_landmarks {
+        let stable = [
+            FeaturePoint::NoseTip,
+            FeaturePoint::InnerEyeLeft,
+            FeaturePoint::InnerEyeRight,
+            FeaturePoint::OuterEyeLeft,
+            FeaturePoint::OuterEyeRight,
+            FeaturePoint::NoseCornerLeft,
+            FeaturePoint::NoseCornerRight,
+            FeaturePoint::Forehead,
+        ];
+        let from: Vec<DVec3> = stable.iter().map(|&p| lm.get(p)).collect();
+        let to: Vec<DVec3> = stable
+            .iter()
+            .map(|&p| reference_mm[model.feature_vertices[p.index()] as usize])
+            .collect();
+        let t = horn_absolute_orientation(&from, &to, false)?;
+        aligned = transform(&aligned, &t);
+    }
+    let stable = stable_vertices(model)?;
+    for _ in 0..params.icp_rounds {
+        let index = SurfaceIndex::new(&aligned, 4.0);
+        let mut from = Vec::new();
+        let mut to = Vec::new();
+        for &v in &stable {
+            let p = reference_mm[v];
+            if let Some((_, c)) = index.closest(p, params.max_distance_mm) {
+                from.push(c);
+                to.push(p);
+            }
+        }
+        if from.len() < 10 {
+            return Err(FemError::Definition(format!(
+                "expression scan does not overlap the model's forehead and nose ({} points within {} mm); give --expression-landmarks",
+                from.len(),
+                params.max_distance_mm
+            ))
+            .into());
+        }
+        let t = horn_absolute_orientation(&from, &to, false)?;
+        aligned = transform(&aligned, &t);
+    }
+    Ok(aligned)
+}
+
+/// Non-negative least squares `min ‖A a − b‖² + ridge ‖a‖², a ≥ 0` from the normal equations
+/// `G = AᵀA`, `h = Aᵀb` (projected Gauss–Seidel; converges for positive definite `G + ridge`).
+pub fn nnls(g: &[Vec<f64>], h: &[f64], ridge: f64) -> Vec<f64> {
+    let n = h.len();
+    let mut a = vec![0.0; n];
+    for _ in 0..5000 {
+        let mut change: f64 = 0.0;
+        for i in 0..n {
+            let gii = g[i][i] + ridge;
+            if !(gii > 0.0) {
+                continue;
+            }
+            let r: f64 = h[i] - (0..n).map(|j| g[i][j] * a[j]).sum::<f64>() - ridge * a[i];
+            let new = (a[i] + r / gii).max(0.0);
+            change = change.max((new - a[i]).abs());
+            a[i] = new;
+        }
+        if change < 1e-12 {
+            break;
+        }
+    }
+    a
+}
+
+fn rms_to_scan(
+    model: &FaceModel,
+    index: &SurfaceIndex,
+    vertices: &[usize],
+    displacement: &[DVec3],
+    max_mm: f64,
+) -> f64 {
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    for &v in vertices {
+        let p = model.surface.positions_mm[v] + displacement[v];
+        let d = index.closest(p, max_mm).map(|(d, _)| d).unwrap_or(max_mm);
+        sum += d * d;
+        count += 1;
+    }
+    (sum / count.max(1) as f64).sqrt()
+}
+
+/// Fits the muscle activations of `model` (basis computed) to an expression scan of the same
+/// person (see the module docs). With `neutral_scan`, vertices the registration left off that
+/// scan are not used. `presets` are compared to find the closest one.
+pub fn fit_expression(
+    model: &FaceModel,
+    neutral_scan: Option<&Mesh>,
+    expression_scan: &Mesh,
+    scan_landmarks: Option<&Landmarks>,
+    presets: &ExpressionSet,
+    params: &FitParams,
+) -> Result<FitResult> {
+    if !model.has_basis() {
+        return Err(FemError::Definition("fit needs the muscle basis".into()).into());
+    }
+    let n = model.surface.vertex_count();
+    let fixed = model.fixed_nodes();
+    let mut aligned = align_scan(
+        model,
+        &model.surface.positions_mm,
+        expression_scan,
+        scan_landmarks,
+        params,
+    )?;
+    let mut index = SurfaceIndex::new(&aligned, 4.0);
+    // Vertices the scan covers (checked on the neutral face; holes and hair stay out), and
+    // that the registration put on the neutral scan.
+    let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
+    let vertices: Vec<usize> = (0..n)
+        .filter(|&v| {
+            let p = model.surface.positions_mm[v];
+            !fixed[v]
+                && index.closest(p, params.max_distance_mm).is_some()
+                && neutral_index
+                    .as_ref()
+                    .is_none_or(|ni| ni.closest(p, params.max_neutral_error_mm).is_some())
+        })
+        .collect();
+    if vertices.len() < 50 {
+        return Err(FemError::Definition(format!(
+            "only {} model vertices lie within {} mm of the expression scan",
+            vertices.len(),
+            params.max_distance_mm
+        ))
+        .into());
+    }
+    let m = model.muscles().len();
+    let basis: Vec<Vec<DVec3>> = (0..m)
+        .map(|i| model.basis_displacement(i).expect("basis"))
+        .collect();
+    let zero = vec![DVec3::ZERO; n];
+    let rms_before_mm = rms_to_scan(model, &index, &vertices, &zero, params.max_distance_mm);
+    let rms_neutral_scan_mm = neutral_index
+        .as_ref()
+        .map(|ni| rms_to_scan(model, ni, &vertices, &zero, params.max_distance_mm));
+    let mut best = (
+        rms_before_mm,
+        vec![0.0; model.muscles().len()],
+        aligned.clone(),
+    );
+    let mut activations = vec![0.0; m];
+    let mut u = vec![DVec3::ZERO; n];
+    for round in 0..params.fit_rounds {
+        if round > 0 {
+            // Re-align on the stable region of the current estimate: expressions move the
+            // forehead a little too, and aligning to the neutral face would bias the fit.
+            let reference: Vec<DVec3> = (0..n)
+                .map(|v| model.surface.positions_mm[v] + u[v])
+                .collect();
+            aligned = align_scan(model, &reference, &aligned, None, params)?;
+            index = SurfaceIndex::new(&aligned, 4.0);
+        }
+        // Target displacement of each vertex: to its closest scan point from where it is now.
+        let mut g = vec![vec![0.0; m]; m];
+        let mut h = vec![0.0; m];
+        for &v in &vertices {
+            let p = model.surface.positions_mm[v] + u[v];
+            let Some((_, c)) = index.closest(p, params.max_distance_mm) else {
+                continue;
+            };
+            // Point-to-plane: only the offset along the surface normal is observable (a scan
+            // cannot see skin sliding along itself), so tangential motion is left free.
+            let normal = model.surface.normals[v];
+            let target = normal.dot(c - model.surface.positions_mm[v]);
+            let rows: Vec<f64> = (0..m).map(|i| normal.dot(basis[i][v])).collect();
+            for i in 0..m {
+                h[i] += rows[i] * target;
+                for j in i..m {
+                    let gij = rows[i] * rows[j];
+                    g[i][j] += gij;
+                    if i != j {
+                        g[j][i] += gij;
+                    }
+                }
+            }
+        }
+        let mean_diag = (0..m).map(|i| g[i][i]).sum::<f64>() / m as f64;
+        activations = nnls(&g, &h, params.ridge * mean_diag);
+        u = vec![DVec3::ZERO; n];
+        for i in 0..m {
+            for v in 0..n {
+                u[v] += basis[i][v] * activations[i];
+            }
+        }
+        let rms = rms_to_scan(model, &index, &vertices, &u, params.max_distance_mm);
+        if rms < best.0 {
+            best = (rms, activations.clone(), aligned.clone());
+        }
+    }
+    let (rms_after_mm, activations, aligned) = best;
+    let index = SurfaceIndex::new(&aligned, 4.0);
+    let names: Vec<String> = model.muscles().iter().map(|mu| mu.name.clone()).collect();
+    let mut closest_preset: Option<(String, f64)> = None;
+    let mut w = Vec::new();
+    for e in &presets.expressions {
+        let a = e.activations_for(&names)?;
+        model.combine_surface(&a, &mut w)?;
+        let rms = rms_to_scan(model, &index, &vertices, &w, params.max_distance_mm);
+        if closest_preset.as_ref().is_none_or(|(_, best)| rms < *best) {
+            closest_preset = Some((e.name.clone(), rms));
+        }
+    }
+    Ok(FitResult {
+        activations,
+        rms_before_mm,
+        rms_after_mm,
+        rms_neutral_scan_mm,
+        closest_preset,
+        vertices_used: vertices.len(),
+        aligned_scan: aligned,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_recovers_a_non_negative_solution_and_clamps_negative_ones() {
+        // G = I-ish, h chosen so the unconstrained optimum is (2, -1, 0.5).
+        let g = vec![
+            vec![2.0, 0.5, 0.0],
+            vec![0.5, 1.0, 0.2],
+            vec![0.0, 0.2, 1.5],
+        ];
+        let x = [2.0, -1.0, 0.5];
+        let h: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| g[i][j] * x[j]).sum())
+            .collect();
+        let a = nnls(&g, &h, 0.0);
+        assert!(a.iter().all(|&v| v >= 0.0));
+        assert_eq!(a[1], 0.0);
+        // KKT: gradient zero on the free set, non-negative on the clamped one.
+        let grad: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| g[i][j] * a[j]).sum::<f64>() - h[i])
+            .collect();
+        assert!(grad[0].abs() < 1e-9 && grad[2].abs() < 1e-9);
+        assert!(grad[1] >= -1e-9);
+    }
+}

@@ -1,0 +1,195 @@
+//! `facesynth synthesize` and `export-fem` end to end.
+
+mod common;
+
+use std::process::Command;
+
+fn run(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(args)
+        .output()
+        .expect("run facesynth");
+    assert!(
+        out.status.success(),
+        "facesynth failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
+#[test]
+fn synthesize_generic_writes_meshes_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let v = run(&[
+        "synthesize",
+        "--out",
+        out.to_str().unwrap(),
+        "--expressions",
+        "happiness,frown",
+        "--png",
+    ]);
+    for name in [
+        "neutral.obj",
+        "happiness.obj",
+        "frown.obj",
+        "report.json",
+        "happiness.png",
+    ] {
+        assert!(out.join(name).is_file(), "{name} missing");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report, v);
+    assert_eq!(v["elements"], 7200);
+    assert!(v["dofs"].as_u64().unwrap() > 20_000);
+    assert!(v["factor_millis"].as_f64().unwrap() > 0.0);
+    assert!(v["basis_millis"].as_f64().unwrap() > 0.0);
+    let smile = &v["expressions"]["happiness"];
+    let max = smile["max_displacement_mm"].as_f64().unwrap();
+    assert!((3.0..15.0).contains(&max), "{max}");
+    assert!(smile["mean_displacement_mm"].as_f64().unwrap() < max);
+    // Same topology, moved vertices.
+    let neutral = facesynth::io::read_mesh(&out.join("neutral.obj")).unwrap();
+    let happy = facesynth::io::read_mesh(&out.join("happiness.obj")).unwrap();
+    assert_eq!(neutral.faces, happy.faces);
+    assert_ne!(neutral.positions_mm, happy.positions_mm);
+    // Unknown names are one-line errors.
+    let bad = Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args([
+            "synthesize",
+            "--out",
+            out.to_str().unwrap(),
+            "--expressions",
+            "nope",
+        ])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown expression"));
+}
+
+#[test]
+fn export_fem_writes_a_legacy_vtk_hex_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let vtk = dir.path().join("happy.vtk");
+    let v = run(&[
+        "export-fem",
+        "--expression",
+        "happiness",
+        "--vtk",
+        vtk.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&vtk).unwrap();
+    let points = v["points"].as_u64().unwrap() as usize;
+    let cells = v["cells"].as_u64().unwrap() as usize;
+    assert!(text.starts_with("# vtk DataFile Version 3.0\n"));
+    assert!(text.contains(&format!("POINTS {points} double")));
+    assert!(text.contains(&format!("CELLS {cells} {}", 9 * cells)));
+    assert!(text.contains(&format!("POINT_DATA {points}")));
+    assert!(text.contains(&format!("CELL_DATA {cells}")));
+    for key in [
+        "VECTORS displacement double",
+        "VECTORS force double",
+        "SCALARS fixed int 1",
+        "SCALARS young_modulus_pa double 1",
+        "SCALARS poisson_ratio double 1",
+    ] {
+        assert!(text.contains(key), "{key}");
+    }
+    let types: Vec<&str> = text
+        .split("CELL_TYPES")
+        .nth(1)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .take(cells)
+        .collect();
+    assert!(types.iter().all(|t| *t == "12"));
+    assert!(!text.contains("NaN") && !text.contains("inf"));
+}
+
+#[test]
+fn synthesize_on_a_registered_scan() {
+    let clean = common::synth_dataset(5, 1, true);
+    let scan_path = clean.join("subj002_frontal1.wrl");
+    let scan = facesynth::io::read_mesh(&scan_path).unwrap();
+    let truth =
+        facesynth::registration::truth_points(&clean.join("subj002_frontal1.json"), &scan).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let lm = dir.path().join("lm.json");
+    std::fs::write(&lm, serde_json::to_string(&truth.landmarks).unwrap()).unwrap();
+    let out = dir.path().join("out");
+    let v = run(&[
+        "synthesize",
+        scan_path.to_str().unwrap(),
+        "--landmarks",
+        lm.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--expressions",
+        "happiness,surprise",
+    ]);
+    println!("{v}");
+    for e in ["happiness", "surprise"] {
+        let max = v["expressions"][e]["max_displacement_mm"].as_f64().unwrap();
+        assert!((1.0..15.0).contains(&max), "{e}: {max}");
+    }
+}
+
+#[test]
+fn fit_expression_writes_a_loadable_preset() {
+    let clean = common::synth_dataset(5, 1, true);
+    let neutral = clean.join("subj002_frontal1.wrl");
+    let smile = clean.join("subj002_sonrisa.wrl");
+    let dir = tempfile::tempdir().unwrap();
+    let mut lm_paths = Vec::new();
+    for (scan, name) in [(&neutral, "frontal1"), (&smile, "sonrisa")] {
+        let mesh = facesynth::io::read_mesh(scan).unwrap();
+        let truth = facesynth::registration::truth_points(
+            &clean.join(format!("subj002_{name}.json")),
+            &mesh,
+        )
+        .unwrap();
+        let path = dir.path().join(format!("{name}.json"));
+        std::fs::write(&path, serde_json::to_string(&truth.landmarks).unwrap()).unwrap();
+        lm_paths.push(path);
+    }
+    let preset = dir.path().join("smile.ron");
+    let v = run(&[
+        "fit-expression",
+        neutral.to_str().unwrap(),
+        smile.to_str().unwrap(),
+        "--landmarks",
+        lm_paths[0].to_str().unwrap(),
+        "--expression-landmarks",
+        lm_paths[1].to_str().unwrap(),
+        "--out",
+        preset.to_str().unwrap(),
+        "--name",
+        "learned_smile",
+    ]);
+    println!("{v}");
+    assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
+    assert!(v["closest_preset"].is_string());
+    assert_eq!(v["activations"].as_object().unwrap().len(), 18);
+    let set = facesynth::fem::expressions::ExpressionSet::load(&preset).unwrap();
+    assert_eq!(set.expressions[0].name, "learned_smile");
+    // The learned preset synthesizes like a built-in one.
+    let out = dir.path().join("out");
+    let s = run(&[
+        "synthesize",
+        "--out",
+        out.to_str().unwrap(),
+        "--presets",
+        preset.to_str().unwrap(),
+        "--expressions",
+        "learned_smile",
+    ]);
+    assert!(
+        s["expressions"]["learned_smile"]["max_displacement_mm"]
+            .as_f64()
+            .unwrap()
+            > 0.5
+    );
+}
