@@ -63,8 +63,7 @@ pub enum Command {
     Register {
         /// Scan mesh (.wrl .vrml .obj .ply .xyz .txt).
         scan: PathBuf,
-        /// The scan's 13 feature points as JSON (name → [x, y, z] mm). Required until automatic
-        /// detection is available.
+        /// The scan's 13 feature points as JSON (name → [x, y, z] mm); detected when omitted.
         #[arg(long)]
         landmarks: Option<PathBuf>,
         /// Write the registered generic face (.obj or .ply).
@@ -79,7 +78,7 @@ pub enum Command {
     Synthesize {
         /// Neutral scan; without it the generic face is used.
         scan: Option<PathBuf>,
-        /// The scan's 13 feature points as JSON (name → [x, y, z] mm); required with SCAN.
+        /// The scan's 13 feature points as JSON (name → [x, y, z] mm); detected when omitted.
         #[arg(long)]
         landmarks: Option<PathBuf>,
         /// Output directory.
@@ -102,7 +101,7 @@ pub enum Command {
     ExportFem {
         /// Neutral scan; without it the generic face is used.
         scan: Option<PathBuf>,
-        /// The scan's 13 feature points as JSON; required with SCAN.
+        /// The scan's 13 feature points as JSON; detected when omitted.
         #[arg(long)]
         landmarks: Option<PathBuf>,
         /// Preset name (e.g. happiness).
@@ -120,7 +119,7 @@ pub enum Command {
     FitExpression {
         neutral_scan: PathBuf,
         expression_scan: PathBuf,
-        /// The neutral scan's 13 feature points as JSON (required until detection is wired in).
+        /// The neutral scan's 13 feature points as JSON; detected when omitted.
         #[arg(long)]
         landmarks: Option<PathBuf>,
         /// The expression scan's feature points as JSON (optional: start of the rigid alignment).
@@ -533,21 +532,17 @@ pub fn register(
     out: Option<&Path>,
     report: Option<&Path>,
 ) -> Result<serde_json::Value> {
-    let landmarks = landmarks.context(
-        "--landmarks FILE.json is required (automatic feature-point detection is not available yet)",
-    )?;
-    let text = std::fs::read_to_string(landmarks)
-        .with_context(|| format!("{}: cannot read", landmarks.display()))?;
-    let points: crate::Landmarks = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a landmark file", landmarks.display()))?;
-    let mesh = io::read_mesh(scan)?;
     let generic = generic_face::build();
-    let params = crate::registration::RegistrationParams::default();
-    let result = crate::registration::register(&generic, &mesh, &points, &params)?;
+    let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
+    let result = &prepared.registration;
     if let Some(path) = out {
         io::write_mesh(path, &result.mesh)?;
     }
-    let value = result.report_json();
+    let mut value = result.report_json();
+    value["landmarks_detected"] = json!(prepared.detection.is_some());
+    if let Some(d) = &prepared.detection {
+        value["landmark_warnings"] = json!(d.warnings);
+    }
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }

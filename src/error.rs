@@ -39,6 +39,30 @@ pub enum Error {
     /// The finite-element face model is ill-posed or its inputs are invalid.
     #[error("fem: {0}")]
     Fem(FemError),
+    /// A pipeline step failed on a given scan (the batch failure list shows these).
+    #[error("{}: {source}", path.display())]
+    InFile {
+        path: PathBuf,
+        #[source]
+        source: Box<Error>,
+    },
+}
+
+impl Error {
+    /// Names the file a step failed on, unless the error names one already.
+    pub fn in_file(self, path: &std::path::Path) -> Error {
+        match self {
+            e @ (Error::Io { .. }
+            | Error::Syntax { .. }
+            | Error::InvalidData { .. }
+            | Error::UnknownFormat { .. }
+            | Error::InFile { .. }) => e,
+            e => Error::InFile {
+                path: path.to_path_buf(),
+                source: Box::new(e),
+            },
+        }
+    }
 }
 
 impl From<FemError> for Error {

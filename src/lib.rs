@@ -27,6 +27,8 @@ pub mod io;
 pub mod landmarks;
 /// The polygon mesh (positions in mm, faces as they come), topology and normals.
 pub mod mesh;
+/// The per-scan pipeline shared by the commands and the editor: denoise → landmarks → register.
+pub mod pipeline;
 /// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
 pub mod registration;
 

@@ -11,23 +11,15 @@ use std::path::Path;
 use std::time::Instant;
 
 /// The face to build the model on: the generic face, or the generic face registered to `scan`
-/// (denoised first) with the scan's landmarks from a JSON file.
+/// (denoised, feature points detected or read from `landmarks`).
 pub fn face_for(scan: Option<&Path>, landmarks: Option<&Path>) -> Result<GenericFace> {
     let generic = generic_face::build();
     let Some(scan) = scan else {
         return Ok(generic);
     };
-    // TODO(#5): automatic feature-point detection replaces --landmarks once it lands.
-    let landmarks = landmarks.context(
-        "--landmarks FILE.json is required with a scan (automatic feature-point detection is not wired in yet)",
-    )?;
-    let points = read_landmarks(landmarks)?;
-    let mut mesh = io::read_mesh(scan)?;
-    denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
-    let params = crate::registration::RegistrationParams::default();
-    let result = crate::registration::register(&generic, &mesh, &points, &params)?;
+    let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
     Ok(GenericFace {
-        mesh: result.mesh,
+        mesh: prepared.registration.mesh,
         feature_vertices: generic.feature_vertices,
     })
 }
@@ -280,12 +272,6 @@ pub fn bench_fem() -> Result<serde_json::Value> {
     }))
 }
 
-fn read_landmarks(path: &Path) -> Result<crate::Landmarks> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{}: not a landmark file", path.display()))
-}
-
 /// `facesynth fit-expression`.
 pub fn fit_expression(
     neutral: &Path,
@@ -297,13 +283,24 @@ pub fn fit_expression(
 ) -> Result<serde_json::Value> {
     use crate::fem::expressions::Expression;
     use crate::fem::fit::{FitParams, fit_expression};
-    let face = face_for(Some(neutral), landmarks)?;
+    let generic = generic_face::build();
+    let prepared = crate::pipeline::prepare_scan(neutral, landmarks, &generic)?;
+    let face = GenericFace {
+        mesh: prepared.registration.mesh,
+        feature_vertices: generic.feature_vertices,
+    };
     let model = solved_model(&face, None)?;
-    let mut neutral_scan = io::read_mesh(neutral)?;
-    denoise::denoise(&mut neutral_scan, &denoise::DenoiseParams::default())?;
+    let neutral_scan = prepared.denoised;
     let mut scan = io::read_mesh(expression)?;
     denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
-    let scan_landmarks = expression_landmarks.map(read_landmarks).transpose()?;
+    // The expression scan's points start the rigid alignment: read, or detected (a failed
+    // detection leaves the alignment to the stable regions alone).
+    let scan_landmarks = match expression_landmarks {
+        Some(path) => Some(crate::pipeline::read_landmarks(path)?),
+        None => crate::landmarks::detect(&scan, &Default::default())
+            .ok()
+            .map(|r| r.landmarks),
+    };
     let presets = ExpressionSet::builtin();
     let fit = fit_expression(
         &model,
