@@ -61,7 +61,7 @@
 //!
 //! Details of each step are on the functions below; measured accuracy on the synthetic
 //! benchmark in [`eval`] (neutral scans: nose tip 2.3 mm, inner eye corners 2.7 mm mean,
-//! 93 % of scans with all 9 points within 10 mm).
+//! 95 % of scans with all 9 points within 10 mm).
 //!
 //! # Real GavabDB scans
 //!
