@@ -86,10 +86,12 @@
 //!
 //! # Speed
 //!
-//! `facesynth bench-landmarks ../shared/data/gavabdb/cara1_frontal1.wrl` (13,709 vertices),
-//! pinned to one core, opt-level 2, on a 2-core machine shared with other builds (load ≈ 5,
-//! so indicative only): denoise 24.5 ms min / 27.8 median, detection 51.7 / 57.1, together
-//! **78.9 ms min / 86.1 ms median** (goal < 150 ms). Most of the detection is the 5-ring
+//! `facesynth bench-landmarks ../shared/data/gavabdb/cara1_frontal1.wrl --repeat 30`
+//! (13,709 vertices), pinned to one core (`taskset -c 0`), opt-level 2 (no release build), on
+//! a 2-core machine shared with other builds (load ≈ 7, so indicative only): denoise
+//! 16.7 ms min / 26.5 ms median, detection 34.9 / 55.3, together **59.3 ms min / 81.7 ms
+//! median** (goal < 150 ms). cara1_sonrisa (13,296 vertices): 40.3 / 79.2. Most of the
+//! detection is the 5-ring
 //! quadric fit at every vertex.
 
 pub mod eval;
