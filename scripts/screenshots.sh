@@ -19,6 +19,10 @@ run() {
 run generic
 run cara1_plain "$scan"
 run cara1_denoise "$scan" --denoise --show denoise
+run cara1_shape_index "$scan" --denoise --detect
+run cara1_registration "$scan" --denoise --register
+run cara1_happiness "$scan" --denoise --register --expression happiness --show displacement
+run cara1_smile_muscles "$scan" --denoise --register --expression broad_smile --muscles --yaw 20
 run generic_happiness --expression happiness --muscles --show displacement
 run generic_cutaway --expression broad_smile --layers cutaway --yaw 40 --pitch 10
 for e in sadness surprise anger disgust fear scorn pain; do

@@ -42,6 +42,7 @@ struct MeshOut {
 fn vs_mesh(v: MeshIn) -> MeshOut {
     var out: MeshOut;
     out.clip = camera.view_proj * vec4<f32>(v.position, 1.0);
+    out.clip.z = out.clip.z - draw.params.z * out.clip.w;
     out.world = v.position;
     out.normal = v.normal;
     out.colour = select(draw.colour, v.colour, draw.colour.a < 0.0);

@@ -209,6 +209,9 @@ pub struct ViewArgs {
     /// Run the denoising filter (default parameters) after loading.
     #[arg(long)]
     pub denoise: bool,
+    /// Detect the 13 feature points (after --denoise, if given).
+    #[arg(long)]
+    pub detect: bool,
     /// Register the generic face to the scan (needs the scan's landmarks).
     #[arg(long)]
     pub register: bool,
@@ -264,6 +267,8 @@ pub enum Overlay {
     Registration,
     /// The FEM face coloured by the expression's displacement magnitude (mm).
     Displacement,
+    /// The scan's shape index (cap 1, saddle 0.5, cup 0) from the feature-point detection.
+    ShapeIndex,
 }
 
 /// Runs a parsed command line.

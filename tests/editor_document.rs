@@ -248,3 +248,44 @@ fn mirrored_muscles_give_mirrored_skin_motion_on_the_symmetric_generic_face() {
     let mc_right = doc.generic.feature_vertex(FeaturePoint::MouthCornerRight) as usize;
     assert!(left[mc_left].length() > 5.0 * left[mc_right].length());
 }
+
+#[test]
+fn the_whole_pipeline_on_a_real_scan_denoise_detect_register_fem() {
+    let mut worker = WorkerState::default();
+    let mut doc = Document::new(generic_face::build());
+    let scan = common::gavab("cara1_frontal1.wrl");
+    apply_with(&mut worker, &mut doc, Command::Open(Some(scan)));
+    apply_with(&mut worker, &mut doc, Command::Denoise(Default::default()));
+    let moved = doc
+        .denoised
+        .as_ref()
+        .expect("denoised")
+        .report
+        .vertices_moved;
+    assert!(moved > 0);
+    apply_with(&mut worker, &mut doc, Command::DetectLandmarks);
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    let l = doc.edits.landmarks.expect("detected");
+    // Subject's left is +x; the nose tip is the most forward point among the 13.
+    use FeaturePoint::*;
+    assert!(l.get(InnerEyeLeft).x > l.get(InnerEyeRight).x);
+    assert!(l.get(MouthCornerLeft).x > l.get(MouthCornerRight).x);
+    assert!(l.get(Forehead).y > l.get(NoseTip).y && l.get(NoseTip).y > l.get(Chin).y);
+    assert!(
+        FeaturePoint::ALL
+            .iter()
+            .all(|&p| l.get(NoseTip).z >= l.get(p).z)
+    );
+    apply_with(&mut worker, &mut doc, Command::Register);
+    let reg = doc.registration.as_ref().expect("registered");
+    assert!(reg.result.rigid_rms_mm < 20.0);
+    apply_with(&mut worker, &mut doc, Command::BuildFem);
+    let fem = doc.fem.as_ref().expect("FEM on the registered face");
+    assert_ne!(
+        fem.surface_id, 0,
+        "built on the registration, not the generic face"
+    );
+    // Detection is one undo step: undo returns to "no points yet".
+    apply_with(&mut worker, &mut doc, Command::Undo);
+    assert!(doc.edits.landmarks.is_none());
+}

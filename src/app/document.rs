@@ -45,6 +45,32 @@ pub struct DenoiseState {
 /// A move larger than this counts as a removed spike (scanner noise is ~0.15 mm).
 pub const SPIKE_MM: f64 = 2.0;
 
+/// The automatic feature-point detection on the working scan (paper 2.1.2).
+#[derive(Debug, Clone)]
+pub struct DetectionState {
+    pub report: crate::landmarks::LandmarkReport,
+    /// Shape index per scan vertex (cap 1, saddle 0.5, cup 0), as the detector saw it.
+    pub shape_index: Vec<f64>,
+    pub millis: f64,
+}
+
+impl DetectionState {
+    /// The Table 2 checks that failed for a point (empty: plausible).
+    pub fn implausible(&self, p: FeaturePoint) -> Vec<String> {
+        self.report
+            .distances
+            .iter()
+            .filter(|d| d.point == p && !d.in_range)
+            .map(|d| {
+                format!(
+                    "{}: {:.1} mm outside [{:.1}, {:.1}]",
+                    d.name, d.measured_mm, d.stat.min_mm, d.stat.max_mm
+                )
+            })
+            .collect()
+    }
+}
+
 /// The generic face registered to the scan.
 #[derive(Debug, Clone)]
 pub struct RegistrationState {
@@ -156,6 +182,8 @@ pub enum Command {
     Denoise(DenoiseParams),
     /// Drop the denoised scan and work on the original again.
     ClearDenoise,
+    /// Detect the 13 feature points on the working scan (denoise first for real scans).
+    DetectLandmarks,
     /// Place one feature point (snapped to the surface by the caller).
     MoveLandmark(FeaturePoint, DVec3),
     SetLandmarks(Box<Landmarks>),
@@ -203,6 +231,7 @@ pub struct Document {
     pub generic: Arc<GenericFace>,
     pub scan: Option<ScanState>,
     pub denoised: Option<DenoiseState>,
+    pub detection: Option<DetectionState>,
     pub registration: Option<RegistrationState>,
     pub fem: Option<FemState>,
     /// The FEM inputs changed while a solve was running: send again when it returns.
@@ -230,6 +259,7 @@ impl Document {
             generic: Arc::new(generic),
             scan: None,
             denoised: None,
+            detection: None,
             registration: None,
             fem: None,
             fem_dirty: false,
@@ -281,6 +311,7 @@ impl Document {
                 None => {
                     self.scan = None;
                     self.denoised = None;
+                    self.detection = None;
                     self.registration = None;
                     self.edits.landmarks = Some(self.generic.landmarks());
                     self.history.clear();
@@ -307,6 +338,14 @@ impl Document {
                 self.version += 1;
                 Vec::new()
             }
+            Command::DetectLandmarks => match self.working_mesh() {
+                Some(mesh) => {
+                    let job = Job::DetectLandmarks { mesh: mesh.clone() };
+                    self.pending.push("detecting");
+                    vec![job]
+                }
+                None => self.fail("open a scan first"),
+            },
             Command::MoveLandmark(point, to_mm) => {
                 let mut landmarks = self.edits.landmarks.unwrap_or_else(|| {
                     // No landmarks yet: start from the generic face's, moved onto the scan
@@ -602,6 +641,7 @@ impl Document {
             JobResult::Denoised(_) => "denoising",
             JobResult::Registered(_) => "registering",
             JobResult::Fem(_) => "solving",
+            JobResult::Detected(_) => "detecting",
         };
         if let Some(i) = self.pending.iter().position(|p| *p == what) {
             self.pending.remove(i);
@@ -610,6 +650,7 @@ impl Document {
             JobResult::Loaded(Ok(scan)) => {
                 self.scan = Some(*scan);
                 self.denoised = None;
+                self.detection = None;
                 self.registration = None;
                 self.fem_dirty |= self.fem.as_ref().is_some_and(|f| f.surface_id != 0);
                 // A new scan's feature points are unknown until detected, loaded or placed.
@@ -632,10 +673,21 @@ impl Document {
                 self.fem = Some(*f);
                 self.version += 1;
             }
+            JobResult::Detected(Ok(d)) => {
+                self.history.checkpoint(&self.edits);
+                self.edits.landmarks = Some(d.report.landmarks);
+                self.status = Some(match d.report.warnings.len() {
+                    0 => format!("13 points found in {:.0} ms", d.millis),
+                    n => format!("13 points found, {n} warnings"),
+                });
+                self.detection = Some(*d);
+                self.version += 1;
+            }
             JobResult::Loaded(Err(e))
             | JobResult::Denoised(Err(e))
             | JobResult::Registered(Err(e))
-            | JobResult::Fem(Err(e)) => {
+            | JobResult::Fem(Err(e))
+            | JobResult::Detected(Err(e)) => {
                 self.error = Some(e);
             }
         }

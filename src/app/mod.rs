@@ -25,18 +25,24 @@ use worker::Worker;
 /// Opens the editor window and runs it until it is closed (or, with `--screenshot`, until the
 /// screenshot is written). An error in screenshot mode (file unreadable, no GPU) is returned.
 pub fn run(args: ViewArgs) -> Result<()> {
+    let scripted = args.screenshot.is_some() || args.measure_slider.is_some();
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("facesynth")
             .with_inner_size([args.width as f32, args.height as f32]),
         renderer: eframe::Renderer::Wgpu,
-        // A scripted screenshot must neither read nor overwrite the user's saved settings.
+        // A scripted run must neither read nor overwrite the user's saved settings (panel
+        // states included), so it gets a storage folder of its own that starts empty.
         persist_window: args.screenshot.is_none(),
+        persistence_path: scripted.then(|| {
+            std::env::temp_dir().join(format!("facesynth-scripted-{}", std::process::id()))
+        }),
         ..Default::default()
     };
+    let options_dir = options.persistence_path.clone();
     let outcome: Arc<Mutex<Option<String>>> = Arc::default();
     let outcome_app = outcome.clone();
-    eframe::run_native(
+    let result = eframe::run_native(
         "facesynth",
         options,
         Box::new(move |cc| {
@@ -48,7 +54,11 @@ pub fn run(args: ViewArgs) -> Result<()> {
             Ok(Box::new(EditorApp::new(cc, args, outcome_app)))
         }),
     )
-    .map_err(|e| anyhow!("could not open the editor window: {e}"))?;
+    .map_err(|e| anyhow!("could not open the editor window: {e}"));
+    if let Some(dir) = &options_dir {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    result?;
     let failure = outcome.lock().map(|mut o| o.take()).unwrap_or(None);
     match failure {
         Some(message) => Err(anyhow!(message)),
@@ -188,8 +198,9 @@ pub struct EditorApp {
     preset_name: String,
     /// Weights of the blend sliders.
     blend: std::collections::BTreeMap<String, f64>,
-    /// Start with the landmark table open (closed when the script goes on to the FEM).
-    landmarks_open: bool,
+    /// Which side-panel sections start open: the last scripted step's, so a screenshot shows
+    /// the figures of what it computed; all of them for an interactive start.
+    panels_open: panels::PanelsOpen,
     scene: Option<viewport_ui::SceneCache>,
     /// Time of the last scene rebuild (basis sum + GPU mesh arrays), ms.
     scene_build_ms: f64,
@@ -217,6 +228,8 @@ impl EditorApp {
         }
         view.overlay = args.show.unwrap_or(if args.register {
             Overlay::Registration
+        } else if args.detect {
+            Overlay::ShapeIndex
         } else if args.denoise {
             Overlay::Denoise
         } else {
@@ -239,7 +252,7 @@ impl EditorApp {
             mirror_muscles: true,
             preset_name: "my_expression".into(),
             blend: Default::default(),
-            landmarks_open: !(args.fem || args.expression.is_some()),
+            panels_open: panels::PanelsOpen::for_args(&args),
             measure: args.measure_slider.map(measure::SliderMeasurement::new),
             scene: None,
             scene_build_ms: 0.0,
@@ -379,6 +392,9 @@ fn script_from_args(args: &ViewArgs) -> VecDeque<Command> {
     }
     if let Some(l) = &args.landmarks {
         script.push_back(Command::LoadLandmarks(l.clone()));
+    } else if args.file.is_some() && (args.detect || args.register) {
+        // Registration needs the points: detect them when none are given.
+        script.push_back(Command::DetectLandmarks);
     }
     if args.register {
         script.push_back(Command::Register);

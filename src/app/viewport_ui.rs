@@ -180,6 +180,21 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
             colours = Some(scale.colours(&d.report.displacement_mm));
             legend = Some(scale);
         }
+        // The shape index belongs to the mesh the detector ran on (the working scan).
+        if view.overlay == Overlay::ShapeIndex
+            && !view.show_original
+            && let Some(d) = &doc.detection
+            && d.shape_index.len() == shown.vertex_count()
+        {
+            let scale = ColourScale {
+                ramp: crate::render::colormap::Ramp::Diverging,
+                min: 0.0,
+                max: 1.0,
+                title: "shape index (cup 0 … cap 1)".into(),
+            };
+            colours = Some(scale.colours(&d.shape_index));
+            legend = Some(scale);
+        }
         let role = if registered.is_some() {
             Role::Underlay
         } else {
@@ -303,6 +318,7 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     colour: Some([0.55, 0.62, 0.8]),
                     opacity: view.scan_opacity,
                     wireframe: false,
+                    depth_push: 0.0015,
                     ..base
                 },
                 Role::Layer(c) => DrawStyle {

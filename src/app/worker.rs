@@ -2,7 +2,9 @@
 //! worker asks egui for a repaint so the UI thread picks them up on its next frame. The jobs
 //! themselves ([`run_job`]) are plain functions, tested without a window.
 
-use super::document::{DenoiseState, FemState, RegistrationState, SPIKE_MM, ScanState};
+use super::document::{
+    DenoiseState, DetectionState, FemState, RegistrationState, SPIKE_MM, ScanState,
+};
 use crate::denoise::DenoiseParams;
 use crate::feature_points::FeaturePoint;
 use crate::feature_points::Landmarks;
@@ -22,6 +24,9 @@ pub enum Job {
     Denoise {
         mesh: Arc<Mesh>,
         params: DenoiseParams,
+    },
+    DetectLandmarks {
+        mesh: Arc<Mesh>,
     },
     Register {
         generic: Arc<GenericFace>,
@@ -44,6 +49,7 @@ pub enum JobResult {
     Denoised(Result<Box<DenoiseState>, String>),
     Registered(Result<Box<RegistrationState>, String>),
     Fem(Result<Box<FemState>, String>),
+    Detected(Result<Box<DetectionState>, String>),
 }
 
 pub struct Worker {
@@ -175,6 +181,7 @@ impl WorkerState {
 pub fn run_job(job: Job) -> JobResult {
     match job {
         Job::Fem { .. } => JobResult::Fem(Err("the FEM job needs the worker's state".into())),
+        Job::DetectLandmarks { mesh } => JobResult::Detected(detect(&mesh).map(Box::new)),
         Job::Load(path) => JobResult::Loaded(load_scan(path).map(Box::new)),
         Job::Denoise { mesh, params } => JobResult::Denoised(denoise(&mesh, params).map(Box::new)),
         Job::Register {
@@ -202,6 +209,22 @@ fn load_scan(path: PathBuf) -> Result<ScanState, String> {
         path,
         bbox_mm,
         load_millis: start.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+fn detect(mesh: &Mesh) -> Result<DetectionState, String> {
+    let start = Instant::now();
+    let params = crate::landmarks::LandmarkParams::default();
+    let e = |e: crate::Error| e.to_string();
+    mesh.validate()?;
+    let topology = crate::mesh::Topology::new(mesh);
+    let desc =
+        crate::curvature::compute_with_topology(mesh, &topology, &params.curvature).map_err(e)?;
+    let report = crate::landmarks::detect_with(mesh, &topology, &desc, &params).map_err(e)?;
+    Ok(DetectionState {
+        report,
+        shape_index: desc.shape_index,
+        millis: start.elapsed().as_secs_f64() * 1e3,
     })
 }
 

@@ -44,6 +44,9 @@ pub struct DrawStyle {
     pub wireframe: bool,
     /// Edge colour; `None` uses the per-vertex colours (line-only items such as arrows).
     pub wire_colour: Option<[f32; 4]>,
+    /// Pushes the surface back in depth (clip units × w), so an underlay that coincides with
+    /// another surface (the scan under the registered face) does not z-fight with it.
+    pub depth_push: f32,
 }
 
 impl Default for DrawStyle {
@@ -55,6 +58,7 @@ impl Default for DrawStyle {
             opacity: 1.0,
             wireframe: false,
             wire_colour: Some([0.08, 0.1, 0.14, 0.55]),
+            depth_push: 0.0,
         }
     }
 }
@@ -548,7 +552,7 @@ impl CallbackTrait for ViewportCallback {
                 0,
                 bytemuck::bytes_of(&DrawUniform {
                     colour,
-                    params: [flat, s.opacity.clamp(0.0, 1.0), 0.0, 0.0],
+                    params: [flat, s.opacity.clamp(0.0, 1.0), -s.depth_push, 0.0],
                 }),
             );
             queue.write_buffer(

@@ -9,6 +9,15 @@ use eframe::egui;
 pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     ui.small("left/right = the subject's own (left is +x, the image's right in a front view)");
     ui.horizontal(|ui| {
+        let can = app.doc.scan.is_some() && !app.doc.busy();
+        if ui
+            .add_enabled(can, egui::Button::new("Detect"))
+            .on_hover_text("paper 2.1.2 on the working (denoised) scan")
+            .clicked()
+        {
+            app.commands.push(Command::DetectLandmarks);
+            app.view.overlay = crate::cli::Overlay::ShapeIndex;
+        }
         if ui.button("Load JSON…").clicked()
             && let Some(path) = rfd::FileDialog::new()
                 .add_filter("landmarks", &["json"])
@@ -52,6 +61,15 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             format!("click the surface to place {} (Esc cancels)", p.name()),
         );
     }
+    if let Some(d) = &app.doc.detection {
+        ui.small(format!(
+            "detected in {:.0} ms; face region {} vertices, roll {:.1}°",
+            d.millis, d.report.face_vertices, d.report.roll_deg
+        ));
+        for w in &d.report.warnings {
+            ui.colored_label(egui::Color32::from_rgb(255, 150, 40), w);
+        }
+    }
     let landmarks = app.doc.edits.landmarks;
     egui::Grid::new("landmarks")
         .num_columns(3)
@@ -64,7 +82,22 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     (g * 255.0) as u8,
                     (b * 255.0) as u8,
                 );
-                ui.colored_label(colour, p.name());
+                let flags = app
+                    .doc
+                    .detection
+                    .as_ref()
+                    .map(|d| d.implausible(p))
+                    .unwrap_or_default();
+                if flags.is_empty() {
+                    ui.colored_label(colour, p.name());
+                } else {
+                    // Outside its Table 2 range: flagged for a look.
+                    ui.colored_label(
+                        egui::Color32::from_rgb(255, 150, 40),
+                        format!("⚠ {}", p.name()),
+                    )
+                    .on_hover_text(flags.join("\n"));
+                }
                 match &landmarks {
                     Some(l) => {
                         let x = l.get(p);

@@ -13,6 +13,39 @@ mod view_ui;
 use super::EditorApp;
 use eframe::egui;
 
+/// Initial open state of the side-panel sections.
+#[derive(Debug, Clone, Copy)]
+pub struct PanelsOpen {
+    denoise: bool,
+    landmarks: bool,
+    registration: bool,
+    fem: bool,
+}
+
+impl PanelsOpen {
+    pub fn for_args(args: &crate::cli::ViewArgs) -> Self {
+        let fem = args.fem || args.expression.is_some();
+        let registration = args.register && !fem;
+        let landmarks = (args.detect || args.landmarks.is_some()) && !registration && !fem;
+        let denoise = args.denoise && !landmarks && !registration && !fem;
+        if denoise || landmarks || registration || fem {
+            PanelsOpen {
+                denoise,
+                landmarks,
+                registration,
+                fem,
+            }
+        } else {
+            PanelsOpen {
+                denoise: true,
+                landmarks: true,
+                registration: true,
+                fem: true,
+            }
+        }
+    }
+}
+
 pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     ui.heading("facesynth");
     file_ui::file_ui(app, ui);
@@ -28,23 +61,24 @@ pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         ui.small(status);
     }
     ui.separator();
+    let open = app.panels_open;
     egui::CollapsingHeader::new("Denoise")
-        .default_open(true)
+        .default_open(open.denoise)
         .show(ui, |ui| denoise_ui::denoise_ui(app, ui));
     egui::CollapsingHeader::new("Landmarks")
-        .default_open(app.landmarks_open)
+        .default_open(open.landmarks)
         .show(ui, |ui| landmarks_ui::landmarks_ui(app, ui));
     egui::CollapsingHeader::new("Registration")
-        .default_open(true)
+        .default_open(open.registration)
         .show(ui, |ui| registration_ui::registration_ui(app, ui));
     egui::CollapsingHeader::new("Materials (FEM)")
-        .default_open(true)
+        .default_open(open.fem)
         .show(ui, |ui| materials_ui::materials_ui(app, ui));
     egui::CollapsingHeader::new("Muscles")
         .default_open(false)
         .show(ui, |ui| muscles_ui::muscles_ui(app, ui));
     egui::CollapsingHeader::new("Expressions")
-        .default_open(true)
+        .default_open(open.fem)
         .show(ui, |ui| expressions_ui::expressions_ui(app, ui));
     egui::CollapsingHeader::new("View")
         .default_open(true)

@@ -7,12 +7,13 @@ use eframe::egui;
 
 pub fn view_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     let v = &mut app.view;
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         ui.label("colour by");
         ui.selectable_value(&mut v.overlay, Overlay::Plain, "plain");
         ui.selectable_value(&mut v.overlay, Overlay::Denoise, "denoise");
         ui.selectable_value(&mut v.overlay, Overlay::Registration, "registration");
         ui.selectable_value(&mut v.overlay, Overlay::Displacement, "displacement");
+        ui.selectable_value(&mut v.overlay, Overlay::ShapeIndex, "shape index");
     });
     if app.doc.fem.is_some() {
         let l = &mut v.layers;
