@@ -249,13 +249,20 @@ fn cli_register_writes_mesh_and_report() {
         mesh.vertex_count(),
         facesynth::generic_face::build().mesh.vertex_count()
     );
-    // Without --landmarks: a clear one-line error.
+    assert_eq!(v["landmarks_detected"], false);
+    // Without --landmarks the points are detected (paper 2.1.2) and the report says so.
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
         .args(["register", scan_path.to_str().unwrap()])
         .output()
         .unwrap();
-    assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("--landmarks"));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(v["landmarks_detected"], true);
+    assert_eq!(v["landmark_residual_mm"].as_object().unwrap().len(), 13);
 }
 
 #[test]

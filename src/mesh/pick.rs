@@ -112,7 +112,7 @@ mod tests {
         let hit = ray_hit(&mesh, DVec3::new(12.0, 17.0, 100.0), -DVec3::Z).unwrap();
         assert!((hit.point_mm - DVec3::new(12.0, 17.0, 0.0)).length() < 1e-9);
         assert!((hit.distance_mm - 100.0).abs() < 1e-9);
-        assert_eq!(hit.nearest_vertex, 4 + 1); // (10, 10, 0) is the closest corner
+        assert_eq!(hit.nearest_vertex, 2 * 4 + 1); // (10, 20, 0) is the closest corner
         // From behind, the back sheet comes first.
         let back = ray_hit(&mesh, DVec3::new(12.0, 17.0, -100.0), DVec3::Z).unwrap();
         assert!((back.point_mm.z + 5.0).abs() < 1e-9);
