@@ -224,6 +224,9 @@ pub struct ViewArgs {
     /// Apply an expression preset (implies --fem), e.g. `happiness`.
     #[arg(long, value_name = "NAME")]
     pub expression: Option<String>,
+    /// Learn an expression from this scan of the same person (implies --fem).
+    #[arg(long, value_name = "SCAN")]
+    pub fit: Option<PathBuf>,
     /// Which FEM layers to draw.
     #[arg(long, value_enum)]
     pub layers: Option<LayersShown>,

@@ -45,6 +45,19 @@ pub struct DenoiseState {
 /// A move larger than this counts as a removed spike (scanner noise is ~0.15 mm).
 pub const SPIKE_MM: f64 = 2.0;
 
+/// An expression learned from a scan (fit of the 18 activations, paper: "additional
+/// expressions can be learned from input faces").
+#[derive(Debug, Clone)]
+pub struct FitState {
+    pub name: String,
+    pub activations: BTreeMap<String, f64>,
+    pub rms_before_mm: f64,
+    pub rms_after_mm: f64,
+    pub closest_preset: Option<(String, f64)>,
+    pub vertices_used: usize,
+    pub millis: f64,
+}
+
 /// The automatic feature-point detection on the working scan (paper 2.1.2).
 #[derive(Debug, Clone)]
 pub struct DetectionState {
@@ -218,6 +231,8 @@ pub enum Command {
     SavePresets(PathBuf),
     /// Add the presets of a RON file.
     LoadPresets(PathBuf),
+    /// Learn an expression from a scan of the same person: fit the activations, apply them.
+    FitExpression(PathBuf),
     /// Write the current expression's skin surface (.obj/.ply).
     ExportExpression(PathBuf),
     /// Write every preset's surface into a folder (`<name>.obj`, plus `neutral.obj`).
@@ -234,6 +249,8 @@ pub struct Document {
     pub detection: Option<DetectionState>,
     pub registration: Option<RegistrationState>,
     pub fem: Option<FemState>,
+    /// The last expression learned from a scan.
+    pub fit: Option<FitState>,
     /// The FEM inputs changed while a solve was running: send again when it returns.
     fem_dirty: bool,
     /// The user asked for the FEM model (it then follows every edit).
@@ -250,6 +267,8 @@ pub struct Document {
     pub error: Option<String>,
     /// A short note of the last thing done ("saved …").
     pub status: Option<String>,
+    /// A name the expressions panel offers for "store as preset" (e.g. the fitted scan's).
+    pub preset_name_hint: Option<String>,
 }
 
 impl Document {
@@ -262,6 +281,7 @@ impl Document {
             detection: None,
             registration: None,
             fem: None,
+            fit: None,
             fem_dirty: false,
             fem_enabled: false,
             registration_count: 0,
@@ -274,6 +294,7 @@ impl Document {
             pending: Vec::new(),
             error: None,
             status: None,
+            preset_name_hint: None,
         }
     }
 
@@ -506,6 +527,17 @@ impl Document {
                 }
                 Err(e) => self.fail(e.to_string()),
             },
+            Command::FitExpression(path) => {
+                if self.fem.is_none() {
+                    return self.fail("build the FEM model first");
+                }
+                self.pending.push("fitting");
+                vec![Job::FitExpression {
+                    scan: path,
+                    neutral: self.working_mesh().cloned(),
+                    presets: self.edits.presets.clone(),
+                }]
+            }
             Command::ExportExpression(path) => {
                 let Some(fem) = &self.fem else {
                     return self.fail("build the FEM model first");
@@ -642,6 +674,7 @@ impl Document {
             JobResult::Registered(_) => "registering",
             JobResult::Fem(_) => "solving",
             JobResult::Detected(_) => "detecting",
+            JobResult::Fitted(_) => "fitting",
         };
         if let Some(i) = self.pending.iter().position(|p| *p == what) {
             self.pending.remove(i);
@@ -673,6 +706,14 @@ impl Document {
                 self.fem = Some(*f);
                 self.version += 1;
             }
+            JobResult::Fitted(Ok(f)) => {
+                self.history.checkpoint(&self.edits);
+                self.edits.activations = f.activations.clone();
+                self.edits.applied_preset = None;
+                self.preset_name_hint = Some(f.name.clone());
+                self.fit = Some(*f);
+                self.version += 1;
+            }
             JobResult::Detected(Ok(d)) => {
                 self.history.checkpoint(&self.edits);
                 self.edits.landmarks = Some(d.report.landmarks);
@@ -687,7 +728,8 @@ impl Document {
             | JobResult::Denoised(Err(e))
             | JobResult::Registered(Err(e))
             | JobResult::Fem(Err(e))
-            | JobResult::Detected(Err(e)) => {
+            | JobResult::Detected(Err(e))
+            | JobResult::Fitted(Err(e)) => {
                 self.error = Some(e);
             }
         }

@@ -399,11 +399,15 @@ fn script_from_args(args: &ViewArgs) -> VecDeque<Command> {
     if args.register {
         script.push_back(Command::Register);
     }
-    if args.fem || args.expression.is_some() || args.measure_slider.is_some() {
+    if args.fem || args.expression.is_some() || args.fit.is_some() || args.measure_slider.is_some()
+    {
         script.push_back(Command::BuildFem);
     }
     if let Some(name) = &args.expression {
         script.push_back(Command::ApplyPreset(name.clone()));
+    }
+    if let Some(scan) = &args.fit {
+        script.push_back(Command::FitExpression(scan.clone()));
     }
     script
 }

@@ -3,11 +3,12 @@
 //! themselves ([`run_job`]) are plain functions, tested without a window.
 
 use super::document::{
-    DenoiseState, DetectionState, FemState, RegistrationState, SPIKE_MM, ScanState,
+    DenoiseState, DetectionState, FemState, FitState, RegistrationState, SPIKE_MM, ScanState,
 };
 use crate::denoise::DenoiseParams;
 use crate::feature_points::FeaturePoint;
 use crate::feature_points::Landmarks;
+use crate::fem::expressions::ExpressionSet;
 use crate::fem::muscles::MuscleSet;
 use crate::fem::{FaceModel, FemParams};
 use crate::generic_face::GenericFace;
@@ -33,6 +34,13 @@ pub enum Job {
         scan: Arc<Mesh>,
         landmarks: Box<Landmarks>,
     },
+    /// Fit the 18 activations to an expression scan with the current FEM model.
+    FitExpression {
+        scan: PathBuf,
+        /// The (denoised) neutral scan the model was registered to, if any.
+        neutral: Option<Arc<Mesh>>,
+        presets: ExpressionSet,
+    },
     /// Bring the FEM model up to date with these inputs (build, refactor or re-solve, as
     /// little as the change needs) and return its basis.
     Fem {
@@ -50,6 +58,7 @@ pub enum JobResult {
     Registered(Result<Box<RegistrationState>, String>),
     Fem(Result<Box<FemState>, String>),
     Detected(Result<Box<DetectionState>, String>),
+    Fitted(Result<Box<FitState>, String>),
 }
 
 pub struct Worker {
@@ -107,8 +116,59 @@ impl WorkerState {
                 self.fem(&surface, surface_id, feature_vertices, params, muscles)
                     .map(Box::new),
             ),
+            Job::FitExpression {
+                scan,
+                neutral,
+                presets,
+            } => JobResult::Fitted(self.fit(&scan, neutral.as_deref(), &presets).map(Box::new)),
             other => run_job(other),
         }
+    }
+
+    fn fit(
+        &self,
+        path: &std::path::Path,
+        neutral: Option<&Mesh>,
+        presets: &ExpressionSet,
+    ) -> Result<FitState, String> {
+        let start = Instant::now();
+        let Some((_, model, _)) = &self.fem else {
+            return Err("build the FEM model first".into());
+        };
+        let e = |e: crate::Error| e.in_file(path).to_string();
+        let mut scan = io::read_mesh(path).map_err(|e| e.to_string())?;
+        crate::denoise::denoise(&mut scan, &DenoiseParams::default()).map_err(e)?;
+        // The scan's own points start the rigid alignment when they can be found.
+        let points = crate::landmarks::detect(&scan, &Default::default())
+            .ok()
+            .map(|r| r.landmarks);
+        let fit = crate::fem::fit::fit_expression(
+            model,
+            neutral,
+            &scan,
+            points.as_ref(),
+            presets,
+            &crate::fem::fit::FitParams::default(),
+        )
+        .map_err(e)?;
+        let name = path
+            .file_stem()
+            .map_or_else(|| "fitted".into(), |s| s.to_string_lossy().into_owned());
+        Ok(FitState {
+            name,
+            activations: model
+                .muscles()
+                .iter()
+                .zip(&fit.activations)
+                .filter(|(_, a)| **a > 0.0)
+                .map(|(m, a)| (m.name.clone(), *a))
+                .collect(),
+            rms_before_mm: fit.rms_before_mm,
+            rms_after_mm: fit.rms_after_mm,
+            closest_preset: fit.closest_preset,
+            vertices_used: fit.vertices_used,
+            millis: start.elapsed().as_secs_f64() * 1e3,
+        })
     }
 
     fn fem(
@@ -181,6 +241,9 @@ impl WorkerState {
 pub fn run_job(job: Job) -> JobResult {
     match job {
         Job::Fem { .. } => JobResult::Fem(Err("the FEM job needs the worker's state".into())),
+        Job::FitExpression { .. } => {
+            JobResult::Fitted(Err("the fit needs the worker's FEM model".into()))
+        }
         Job::DetectLandmarks { mesh } => JobResult::Detected(detect(&mesh).map(Box::new)),
         Job::Load(path) => JobResult::Loaded(load_scan(path).map(Box::new)),
         Job::Denoise { mesh, params } => JobResult::Denoised(denoise(&mesh, params).map(Box::new)),

@@ -81,6 +81,45 @@ pub fn expressions_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             app.commands.push(Command::ExportAllExpressions(dir));
         }
     });
+    ui.horizontal(|ui| {
+        if ui
+            .add_enabled(!app.doc.busy(), egui::Button::new("Learn from scan…"))
+            .on_hover_text("fit the 18 activations to an expression scan of the same person")
+            .clicked()
+            && let Some(path) = rfd::FileDialog::new()
+                .add_filter("meshes", &["wrl", "vrml", "obj", "ply", "xyz", "txt"])
+                .pick_file()
+        {
+            app.commands.push(Command::FitExpression(path));
+        }
+    });
+    if let Some(f) = &app.doc.fit {
+        super::figures_grid(
+            ui,
+            "fit-figures",
+            &[
+                ("learned from", f.name.clone()),
+                (
+                    "RMS to the scan",
+                    format!(
+                        "{:.2} mm neutral → {:.2} mm fitted",
+                        f.rms_before_mm, f.rms_after_mm
+                    ),
+                ),
+                (
+                    "closest preset",
+                    f.closest_preset
+                        .as_ref()
+                        .map_or("—".into(), |(n, d)| format!("{n} ({d:.2} mm)")),
+                ),
+                ("vertices used", f.vertices_used.to_string()),
+                ("time", format!("{:.0} ms", f.millis)),
+            ],
+        );
+    }
+    if let Some(name) = app.doc.preset_name_hint.take() {
+        app.preset_name = name;
+    }
     egui::CollapsingHeader::new("blend")
         .default_open(false)
         .show(ui, |ui| {
