@@ -107,6 +107,25 @@ pub enum BoundaryRule {
     Hold,
 }
 
+/// How [`DenoiseMethod::MedianLaplacian`] estimates where a vertex should be (steps 1–2 of
+/// the iteration); the thresholding and moving (steps 3–6) are the same for both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Estimator {
+    /// The paper: component-wise median of the 1-ring, then the umbrella Laplacian of the
+    /// median-filtered mesh; the vertex moves in 3D.
+    MedianLaplacian,
+    /// Robust local surface fit (the default): a quadric `z = f(x, y)` fitted by least squares
+    /// to the vertex's 2-ring (the vertex itself left out), refitted once without the ring
+    /// points whose residual exceeds `max(3 σ̂, 1 mm)` (σ̂ = 1.4826 · median |residual|).
+    /// The candidate is the fit's height at the vertex, so the vertex moves along the
+    /// scanner's viewing axis z only; x and y (the scanner grid) are kept exactly.
+    /// A vertex is eligible only if its change is at least
+    /// [`DenoiseParams::outlier_sigmas`] × σ̂ of its ring (and the floor).
+    #[default]
+    RobustQuadric,
+}
+
 /// Parameters of [`denoise`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct DenoiseParams {
@@ -124,9 +143,9 @@ pub struct DenoiseParams {
     pub rule: MoveRule,
     /// Smallest displacement that moves a vertex in the median-Laplacian filter, mm (≥ 0).
     /// It stops the iteration once only scanner-noise-sized changes are left, and keeps the
-    /// filter off smooth skin. Default 1.0 mm: well above the ~0.15 mm scanner noise and the
-    /// ≤ ~0.5 mm curvature terms of a 1.5 mm-grid face, well below the ≥ 5 mm spikes.
-    /// [`DenoiseParams::paper`] uses 0.
+    /// filter off smooth skin. Default 2.0 mm: 13 σ of the ~0.15 mm scanner noise, below the
+    /// ≥ 5 mm spikes, and what is left of a spike below it is within the 2 mm the benchmark
+    /// asks for. [`DenoiseParams::paper`] uses 0.
     pub min_displacement_mm: f64,
     /// Laplacian / Taubin smoothing factor λ (0 < λ ≤ 1). Default 0.5.
     pub lambda: f64,
@@ -135,6 +154,21 @@ pub struct DenoiseParams {
     pub mu: f64,
     /// Boundary handling. Default [`BoundaryRule::AlongBoundary`].
     pub boundary: BoundaryRule,
+    /// Local estimate of the median-Laplacian filter. Default [`Estimator::RobustQuadric`];
+    /// [`DenoiseParams::paper`] uses [`Estimator::MedianLaplacian`].
+    pub estimator: Estimator,
+    /// [`Estimator::RobustQuadric`] only: a vertex is eligible to move only if its change is
+    /// at least this many robust standard deviations σ̂ of its ring's fit residuals (≥ 0).
+    /// It keeps the filter off places where the surface is rough at the grid scale (cone
+    /// tips of the eye and mouth fills, lip and nostril edges). Default 6.
+    pub outlier_sigmas: f64,
+    /// [`Estimator::RobustQuadric`] only: eligibility floor of boundary vertices, mm (≥ 0).
+    /// A rim vertex's fit is a one-sided extrapolation, and at the face's silhouette the
+    /// surface turns away faster than a quadric predicts: on the clean synthetic twins rim
+    /// extrapolations are off by up to ~8 mm, the scanner's own depth-jump limit (faces
+    /// spanning more than ~8 mm of depth are not built). Default 8 mm: rim vertices further
+    /// off than a real rim can be are spikes.
+    pub rim_floor_mm: f64,
 }
 
 impl Default for DenoiseParams {
@@ -144,10 +178,13 @@ impl Default for DenoiseParams {
             iterations: 15,
             w: 0.8,
             rule: MoveRule::PerRegion,
-            min_displacement_mm: 1.0,
+            min_displacement_mm: 2.0,
             lambda: 0.5,
             mu: -0.53,
             boundary: BoundaryRule::AlongBoundary,
+            estimator: Estimator::RobustQuadric,
+            outlier_sigmas: 6.0,
+            rim_floor_mm: 8.0,
         }
     }
 }
@@ -158,6 +195,7 @@ impl DenoiseParams {
         DenoiseParams {
             rule: MoveRule::Global,
             min_displacement_mm: 0.0,
+            estimator: Estimator::MedianLaplacian,
             ..Self::default()
         }
     }
@@ -181,6 +219,18 @@ impl DenoiseParams {
             return bad(format!(
                 "min_displacement_mm must be ≥ 0, got {}",
                 self.min_displacement_mm
+            ));
+        }
+        if !(self.outlier_sigmas >= 0.0 && self.outlier_sigmas.is_finite()) {
+            return bad(format!(
+                "outlier_sigmas must be ≥ 0, got {}",
+                self.outlier_sigmas
+            ));
+        }
+        if !(self.rim_floor_mm >= 0.0 && self.rim_floor_mm.is_finite()) {
+            return bad(format!(
+                "rim_floor_mm must be ≥ 0, got {}",
+                self.rim_floor_mm
             ));
         }
         if !(self.lambda > 0.0 && self.lambda <= 1.0) {
@@ -345,7 +395,7 @@ pub fn run(
     let mut iterations_run = 0;
     match params.method {
         DenoiseMethod::MedianLaplacian => {
-            let mut work = MedianLaplacianWork::new(n);
+            let mut work = MedianLaplacianWork::new(n, topology, params.estimator);
             for it in 1..=params.iterations {
                 if work.iterate(positions, nb, topology, params, &mut moved) == 0 {
                     break;
@@ -415,38 +465,76 @@ struct MedianLaplacianWork {
     median: Vec<DVec3>,
     candidate: Vec<DVec3>,
     disp: Vec<f64>,
+    /// Per-vertex eligibility floor, mm (the robust estimator's `k σ̂`, else the global floor).
+    floor: Vec<f64>,
     label: Vec<u32>,
     region_max: Vec<f64>,
     stack: Vec<u32>,
     xs: Vec<f64>,
     ys: Vec<f64>,
     zs: Vec<f64>,
+    /// [`Estimator::RobustQuadric`]: the 2-rings (CSR), and which vertices need a new fit.
+    rings: Option<Rings>,
+    /// The 3-rings, for vertices whose 2-ring fit stays rough (spike clusters).
+    rings3: Option<Rings>,
+    dirty: Vec<bool>,
+    fit: QuadricFit,
+}
+
+/// The 2-ring of every vertex (the vertex itself excluded), CSR.
+struct Rings {
+    offsets: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Rings {
+    fn new(topology: &Topology, k: usize) -> Self {
+        let n = topology.vertex_count();
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut items = Vec::with_capacity(n * 12);
+        let mut scratch = vec![false; n];
+        let mut ring = Vec::new();
+        offsets.push(0);
+        for v in 0..n {
+            topology.k_ring(v, k, &mut scratch, &mut ring);
+            items.extend_from_slice(&ring);
+            offsets.push(items.len() as u32);
+        }
+        Rings { offsets, items }
+    }
+
+    fn of(&self, v: usize) -> &[u32] {
+        &self.items[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+    }
 }
 
 impl MedianLaplacianWork {
-    fn new(n: usize) -> Self {
+    fn new(n: usize, topology: &Topology, estimator: Estimator) -> Self {
         MedianLaplacianWork {
             median: vec![DVec3::ZERO; n],
             candidate: vec![DVec3::ZERO; n],
             disp: vec![0.0; n],
+            floor: vec![0.0; n],
             label: vec![u32::MAX; n],
             region_max: Vec::new(),
             stack: Vec::new(),
             xs: Vec::with_capacity(16),
             ys: Vec::with_capacity(16),
             zs: Vec::with_capacity(16),
+            rings: (estimator == Estimator::RobustQuadric).then(|| Rings::new(topology, 2)),
+            rings3: (estimator == Estimator::RobustQuadric).then(|| Rings::new(topology, 3)),
+            dirty: vec![true; n],
+            fit: QuadricFit::default(),
         }
     }
 
-    /// One iteration; returns how many vertices moved.
-    fn iterate(
+    /// Steps 1–3 of [`Estimator::MedianLaplacian`]: candidates and displacements.
+    fn estimate_median_laplacian(
         &mut self,
-        positions: &mut [DVec3],
+        positions: &[DVec3],
         nb: &FilterNeighbours,
-        topology: &Topology,
-        params: &DenoiseParams,
-        moved: &mut [bool],
-    ) -> usize {
+        floor: f64,
+    ) {
         // 1. Component-wise median of the vertex and its filter neighbours.
         for (v, m) in self.median.iter_mut().enumerate() {
             let ring = nb.of(v);
@@ -481,30 +569,110 @@ impl MedianLaplacianWork {
             };
             self.candidate[v] = c;
             self.disp[v] = c.distance(positions[v]);
+            self.floor[v] = floor;
+        }
+    }
+
+    /// Steps 1–3 of [`Estimator::RobustQuadric`] for the vertices marked dirty.
+    fn estimate_quadric(
+        &mut self,
+        positions: &[DVec3],
+        topology: &Topology,
+        params: &DenoiseParams,
+        floor: f64,
+    ) {
+        let rings = self
+            .rings
+            .as_ref()
+            .expect("rings are built for the quadric estimator");
+        let rings3 = self
+            .rings3
+            .as_ref()
+            .expect("rings are built for the quadric estimator");
+        for v in 0..positions.len() {
+            if !self.dirty[v] {
+                continue;
+            }
+            self.dirty[v] = false;
+            let p = positions[v];
+            let held = params.boundary == BoundaryRule::Hold && topology.is_boundary[v];
+            let estimate = if held {
+                None
+            } else {
+                match self.fit.predict(positions, p, rings.of(v)) {
+                    // A rough 2-ring: a spike cluster may hold too large a share of it.
+                    Some((_, sigma)) if sigma > TRIM_MIN_MM => self
+                        .fit
+                        .predict(positions, p, rings3.of(v))
+                        .filter(|e| e.1 < sigma),
+                    e => e,
+                }
+                .or_else(|| self.fit.predict(positions, p, rings.of(v)))
+            };
+            match estimate {
+                Some((z, sigma)) => {
+                    self.candidate[v] = DVec3::new(p.x, p.y, z);
+                    self.disp[v] = (z - p.z).abs();
+                    let rim = if topology.is_boundary[v] {
+                        params.rim_floor_mm
+                    } else {
+                        0.0
+                    };
+                    self.floor[v] = floor.max(params.outlier_sigmas * sigma).max(rim);
+                }
+                None => {
+                    self.candidate[v] = p;
+                    self.disp[v] = 0.0;
+                    self.floor[v] = f64::INFINITY;
+                }
+            }
+        }
+    }
+
+    /// One iteration; returns how many vertices moved.
+    fn iterate(
+        &mut self,
+        positions: &mut [DVec3],
+        nb: &FilterNeighbours,
+        topology: &Topology,
+        params: &DenoiseParams,
+        moved: &mut [bool],
+    ) -> usize {
+        let floor = params.min_displacement_mm.max(STILL_MM);
+        match params.estimator {
+            Estimator::MedianLaplacian => self.estimate_median_laplacian(positions, nb, floor),
+            Estimator::RobustQuadric => self.estimate_quadric(positions, topology, params, floor),
         }
         // 4. Threshold; 5. move.
-        let floor = params.min_displacement_mm.max(STILL_MM);
         let mut count = 0;
         match params.rule {
             MoveRule::Global => {
-                let max = self.disp.iter().copied().fold(0.0, f64::max);
-                let t = (params.w * max).max(floor);
+                let max = self
+                    .disp
+                    .iter()
+                    .zip(&self.floor)
+                    .filter(|(d, f)| d >= f)
+                    .map(|(d, _)| *d)
+                    .fold(0.0, f64::max);
+                let t = params.w * max;
                 for v in 0..positions.len() {
-                    if self.disp[v] >= t {
+                    if self.disp[v] >= t && self.disp[v] >= self.floor[v] {
                         positions[v] = self.candidate[v];
                         moved[v] = true;
                         count += 1;
+                        self.mark_dirty(v);
                     }
                 }
             }
             MoveRule::PerRegion => {
-                self.label_regions(topology, floor);
+                self.label_regions(topology);
                 for v in 0..positions.len() {
                     let l = self.label[v];
                     if l != u32::MAX && self.disp[v] >= params.w * self.region_max[l as usize] {
                         positions[v] = self.candidate[v];
                         moved[v] = true;
                         count += 1;
+                        self.mark_dirty(v);
                     }
                 }
             }
@@ -512,13 +680,23 @@ impl MedianLaplacianWork {
         count
     }
 
-    /// Labels the connected regions of vertices with `disp ≥ floor` and records each region's
-    /// largest displacement.
-    fn label_regions(&mut self, topology: &Topology, floor: f64) {
+    /// After `v` moved: every vertex whose estimate uses `v` needs a new one.
+    fn mark_dirty(&mut self, v: usize) {
+        if let Some(rings) = &self.rings3 {
+            self.dirty[v] = true;
+            for &u in rings.of(v) {
+                self.dirty[u as usize] = true;
+            }
+        }
+    }
+
+    /// Labels the connected regions of eligible vertices (`disp ≥ floor`) and records each
+    /// region's largest displacement.
+    fn label_regions(&mut self, topology: &Topology) {
         self.label.fill(u32::MAX);
         self.region_max.clear();
         for seed in 0..self.disp.len() {
-            if self.disp[seed] < floor || self.label[seed] != u32::MAX {
+            if self.disp[seed] < self.floor[seed] || self.label[seed] != u32::MAX {
                 continue;
             }
             let id = self.region_max.len() as u32;
@@ -531,7 +709,7 @@ impl MedianLaplacianWork {
                 max = max.max(self.disp[v]);
                 for &u in topology.neighbours(v) {
                     let u = u as usize;
-                    if self.label[u] == u32::MAX && self.disp[u] >= floor {
+                    if self.label[u] == u32::MAX && self.disp[u] >= self.floor[u] {
                         self.label[u] = id;
                         self.stack.push(u as u32);
                     }
@@ -540,6 +718,168 @@ impl MedianLaplacianWork {
             self.region_max.push(max);
         }
     }
+}
+
+/// Least-squares quadric (or plane) fit of a height field over a vertex's ring, with one
+/// trimming pass ([`Estimator::RobustQuadric`]).
+#[derive(Default)]
+struct QuadricFit {
+    /// Ring points relative to the vertex: (x, y, z).
+    pts: Vec<DVec3>,
+    keep: Vec<bool>,
+    /// Least-squares weights (1 = plain least squares; the L1 reweighting changes them).
+    weight: Vec<f64>,
+    res: Vec<f64>,
+}
+
+/// Fewest ring points for a quadric fit (6 unknowns) and for a plane fit (3 unknowns).
+const QUADRIC_MIN_POINTS: usize = 9;
+const PLANE_MIN_POINTS: usize = 4;
+/// L1 (least absolute deviations) reweighting rounds used when a plain fit leaves a rough
+/// ring (σ̂ above [`TRIM_MIN_MM`]): a spike cluster inside the ring pulls a least-squares
+/// fit towards it, the L1 fit is not pulled by a minority of outliers in z.
+const L1_ROUNDS: usize = 10;
+/// Ring points with a residual above `max(TRIM_SIGMAS σ̂, TRIM_MIN_MM)` are left out of the
+/// refit.
+const TRIM_SIGMAS: f64 = 3.0;
+const TRIM_MIN_MM: f64 = 1.0;
+
+impl QuadricFit {
+    /// The fitted height at `p` and the robust residual scale σ̂ of the kept ring points, or
+    /// `None` when the ring cannot support a fit.
+    fn predict(&mut self, positions: &[DVec3], p: DVec3, ring: &[u32]) -> Option<(f64, f64)> {
+        self.pts.clear();
+        self.pts
+            .extend(ring.iter().map(|&u| positions[u as usize] - p));
+        self.keep.clear();
+        self.keep.resize(self.pts.len(), true);
+        self.weight.clear();
+        self.weight.resize(self.pts.len(), 1.0);
+        let mut z = self.solve()?;
+        if self.sigma_of(z.1) > TRIM_MIN_MM {
+            for _ in 0..L1_ROUNDS {
+                for (i, q) in self.pts.iter().enumerate() {
+                    let r = (q.z - eval_quadric(&z.1, q.x, q.y)).abs();
+                    self.weight[i] = 1.0 / r.max(0.05);
+                }
+                z = self.solve()?;
+            }
+            self.weight.fill(1.0);
+        }
+        let sigma = self.trim(z.1);
+        if self.keep.iter().any(|k| !k) {
+            z = self.solve()?;
+        }
+        let sigma = self.sigma_of(z.1).min(sigma);
+        // A wild extrapolation (thin strips, one-sided rims): not trusted.
+        let (lo, hi) = self
+            .pts
+            .iter()
+            .zip(&self.keep)
+            .filter(|(_, k)| **k)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (q, _)| {
+                (lo.min(q.z), hi.max(q.z))
+            });
+        let span = hi - lo;
+        if !(z.0 >= lo - span - 1.0 && z.0 <= hi + span + 1.0) {
+            return None;
+        }
+        Some((p.z + z.0, sigma))
+    }
+
+    /// Robust σ̂ (1.4826 · median |residual|) of the kept points under `coef`.
+    fn sigma_of(&mut self, coef: [f64; 6]) -> f64 {
+        self.res.clear();
+        for (q, k) in self.pts.iter().zip(&self.keep) {
+            if *k {
+                self.res.push((q.z - eval_quadric(&coef, q.x, q.y)).abs());
+            }
+        }
+        if self.res.is_empty() {
+            return 0.0;
+        }
+        1.4826 * median(&mut self.res)
+    }
+
+    /// Drops the points whose residual is above the trimming limit; returns σ̂ before.
+    fn trim(&mut self, coef: [f64; 6]) -> f64 {
+        let sigma = self.sigma_of(coef);
+        let limit = (TRIM_SIGMAS * sigma).max(TRIM_MIN_MM);
+        for (q, k) in self.pts.iter().zip(self.keep.iter_mut()) {
+            if (q.z - eval_quadric(&coef, q.x, q.y)).abs() > limit {
+                *k = false;
+            }
+        }
+        sigma
+    }
+
+    /// Least squares over the kept points: a quadric if there are enough and it is well
+    /// conditioned, else a plane. Returns (height at the origin, coefficients).
+    fn solve(&self) -> Option<(f64, [f64; 6])> {
+        let count = self.keep.iter().filter(|k| **k).count();
+        if count >= QUADRIC_MIN_POINTS
+            && let Some(c) = self.solve_terms::<6>()
+        {
+            return Some((c[0], c));
+        }
+        if count >= PLANE_MIN_POINTS
+            && let Some(c) = self.solve_terms::<3>()
+        {
+            return Some((c[0], [c[0], c[1], c[2], 0.0, 0.0, 0.0]));
+        }
+        None
+    }
+
+    /// Normal equations for the first `K` terms of `[1, x, y, x², xy, y²]`, in coordinates
+    /// scaled by the ring's RMS radius; `None` if (nearly) singular.
+    fn solve_terms<const K: usize>(&self) -> Option<[f64; K]> {
+        let (mut r2, mut n) = (0.0, 0.0);
+        for (q, k) in self.pts.iter().zip(&self.keep) {
+            if *k {
+                r2 += q.x * q.x + q.y * q.y;
+                n += 1.0;
+            }
+        }
+        let scale = (r2 / n).sqrt();
+        if !(scale > 1e-9) {
+            return None;
+        }
+        let mut ata = nalgebra::SMatrix::<f64, K, K>::zeros();
+        let mut atb = nalgebra::SVector::<f64, K>::zeros();
+        for ((q, k), w) in self.pts.iter().zip(&self.keep).zip(&self.weight) {
+            if !*k {
+                continue;
+            }
+            let (x, y) = (q.x / scale, q.y / scale);
+            let all = [1.0, x, y, x * x, x * y, y * y];
+            let row = nalgebra::SVector::<f64, K>::from_fn(|i, _| all[i]);
+            ata += *w * row * row.transpose();
+            atb += *w * row * q.z;
+        }
+        let chol = nalgebra::Cholesky::new(ata)?;
+        let l = chol.l();
+        let (dmin, dmax) = (0..K).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
+            (lo.min(l[(i, i)]), hi.max(l[(i, i)]))
+        });
+        // Diagonal of the factor ~ singular values' square roots: reject condition > ~1e8.
+        if !(dmin > 1e-4 * dmax) {
+            return None;
+        }
+        let c = chol.solve(&atb);
+        let unscale = [
+            1.0,
+            1.0 / scale,
+            1.0 / scale,
+            1.0 / (scale * scale),
+            1.0 / (scale * scale),
+            1.0 / (scale * scale),
+        ];
+        Some(std::array::from_fn(|i| c[i] * unscale[i]))
+    }
+}
+
+fn eval_quadric(c: &[f64; 6], x: f64, y: f64) -> f64 {
+    c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y
 }
 
 /// Median of a small non-empty list (mean of the two middle values for an even count).
@@ -600,5 +940,54 @@ mod tests {
         let held = FilterNeighbours::new(&m, &t, BoundaryRule::Hold);
         assert!(held.of(1).is_empty());
         assert_eq!(held.of(5), &[1, 4, 6, 9]);
+    }
+}
+#[cfg(test)]
+mod zz_debug {
+    use super::*;
+    #[test]
+    #[ignore]
+    fn zz_one() {
+        let pair = eval::load_pair(
+            std::path::Path::new("/tmp/dr_s20"),
+            std::path::Path::new("/tmp/dr_s20_clean"),
+            "subj000_frontal2",
+        )
+        .unwrap();
+        let m = &pair.noisy;
+        let t = Topology::new(m);
+        let rings = Rings::new(&t, 2);
+        let mut f = QuadricFit::default();
+        let v = 1793;
+        let p = m.positions_mm[v];
+        println!(
+            "p {p:?} ring {:?}",
+            rings
+                .of(v)
+                .iter()
+                .map(|&u| m.positions_mm[u as usize].z - p.z)
+                .collect::<Vec<_>>()
+        );
+        println!(
+            "pts xy {:?}",
+            rings
+                .of(v)
+                .iter()
+                .map(|&u| {
+                    let q = m.positions_mm[u as usize] - p;
+                    (q.x, q.y)
+                })
+                .collect::<Vec<_>>()
+        );
+        f.pts.clear();
+        f.pts
+            .extend(rings.of(v).iter().map(|&u| m.positions_mm[u as usize] - p));
+        f.keep.clear();
+        f.keep.resize(f.pts.len(), true);
+        f.weight.clear();
+        f.weight.resize(f.pts.len(), 1.0);
+        println!("solve6 {:?}", f.solve_terms::<6>());
+        println!("solve3 {:?}", f.solve_terms::<3>());
+        println!("predict {:?}", f.predict(&m.positions_mm, p, rings.of(v)));
     }
 }
