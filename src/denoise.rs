@@ -396,10 +396,16 @@ pub fn run(
     match params.method {
         DenoiseMethod::MedianLaplacian => {
             let mut work = MedianLaplacianWork::new(n, topology, params.estimator);
-            for it in 1..=params.iterations {
+            let mut it = 0;
+            while it < params.iterations {
                 if work.iterate(positions, nb, topology, params, &mut moved) == 0 {
-                    break;
+                    // The quadric estimator does the rims once the interior has settled.
+                    if work.rim_phase || !work.start_rim_phase(topology) {
+                        break;
+                    }
+                    continue;
                 }
+                it += 1;
                 iterations_run += 1;
                 observe(it, positions);
             }
@@ -478,6 +484,9 @@ struct MedianLaplacianWork {
     /// The 3-rings, for vertices whose 2-ring fit stays rough (spike clusters).
     rings3: Option<Rings>,
     dirty: Vec<bool>,
+    /// [`Estimator::RobustQuadric`]: `false` while the interior is filtered (rim vertices
+    /// wait), `true` once it has settled and the rim vertices are filtered.
+    rim_phase: bool,
     fit: QuadricFit,
 }
 
@@ -524,6 +533,7 @@ impl MedianLaplacianWork {
             rings: (estimator == Estimator::RobustQuadric).then(|| Rings::new(topology, 2)),
             rings3: (estimator == Estimator::RobustQuadric).then(|| Rings::new(topology, 3)),
             dirty: vec![true; n],
+            rim_phase: false,
             fit: QuadricFit::default(),
         }
     }
@@ -595,20 +605,51 @@ impl MedianLaplacianWork {
             }
             self.dirty[v] = false;
             let p = positions[v];
-            let held = params.boundary == BoundaryRule::Hold && topology.is_boundary[v];
+            let held = topology.is_boundary[v]
+                && (params.boundary == BoundaryRule::Hold || !self.rim_phase);
             let estimate = if held {
                 None
             } else {
-                match self.fit.predict(positions, p, rings.of(v)) {
-                    // A rough 2-ring: a spike cluster may hold too large a share of it.
-                    Some((_, sigma)) if sigma > TRIM_MIN_MM => self
-                        .fit
-                        .predict(positions, p, rings3.of(v))
-                        .filter(|e| e.1 < sigma),
-                    e => e,
+                if topology.is_boundary[v] {
+                    // A rim vertex is fitted from the interior of its 3-ring only: other rim
+                    // vertices (single-face tips, rim spikes) are the least reliable support.
+                    let interior = |u: usize| !topology.is_boundary[u];
+                    self.fit
+                        .predict(positions, p, rings3.of(v), interior)
+                        .or_else(|| self.fit.predict(positions, p, rings3.of(v), |_| true))
+                } else {
+                    let all = |_: usize| true;
+                    match self.fit.predict(positions, p, rings.of(v), all) {
+                        // A rough 2-ring: a spike cluster may hold too large a share of it.
+                        Some((_, sigma)) if sigma > TRIM_MIN_MM => self
+                            .fit
+                            .predict(positions, p, rings3.of(v), all)
+                            .filter(|e| e.1 < sigma),
+                        e => e,
+                    }
+                    .or_else(|| self.fit.predict(positions, p, rings.of(v), all))
                 }
-                .or_else(|| self.fit.predict(positions, p, rings.of(v)))
             };
+            // A rim vertex moves only towards its neighbours' median height and not much
+            // past it: a one-sided fit next to other defects can point the wrong way.
+            let estimate = estimate.filter(|&(z, _)| {
+                if !topology.is_boundary[v] {
+                    return true;
+                }
+                self.zs.clear();
+                self.zs.extend(
+                    topology
+                        .neighbours(v)
+                        .iter()
+                        .map(|&u| positions[u as usize].z),
+                );
+                if self.zs.is_empty() {
+                    return false;
+                }
+                let towards = median(&mut self.zs) - p.z;
+                let step = z - p.z;
+                step * towards > 0.0 && step.abs() <= towards.abs() + params.rim_floor_mm
+            });
             match estimate {
                 Some((z, sigma)) => {
                     self.candidate[v] = DVec3::new(p.x, p.y, z);
@@ -680,6 +721,19 @@ impl MedianLaplacianWork {
         count
     }
 
+    /// Switches the quadric estimator to the rim phase; `false` if there is none (the paper's
+    /// estimator, or no rim).
+    fn start_rim_phase(&mut self, topology: &Topology) -> bool {
+        if self.rings.is_none() || !topology.is_boundary.iter().any(|&b| b) {
+            return false;
+        }
+        self.rim_phase = true;
+        for (d, &b) in self.dirty.iter_mut().zip(&topology.is_boundary) {
+            *d |= b;
+        }
+        true
+    }
+
     /// After `v` moved: every vertex whose estimate uses `v` needs a new one.
     fn mark_dirty(&mut self, v: usize) {
         if let Some(rings) = &self.rings3 {
@@ -739,6 +793,8 @@ const PLANE_MIN_POINTS: usize = 4;
 /// ring (σ̂ above [`TRIM_MIN_MM`]): a spike cluster inside the ring pulls a least-squares
 /// fit towards it, the L1 fit is not pulled by a minority of outliers in z.
 const L1_ROUNDS: usize = 10;
+/// A first fit with a ring residual above this (mm) is redone by L1 reweighting.
+const L1_TRIGGER_MM: f64 = 2.0;
 /// Ring points with a residual above `max(TRIM_SIGMAS σ̂, TRIM_MIN_MM)` are left out of the
 /// refit.
 const TRIM_SIGMAS: f64 = 3.0;
@@ -747,16 +803,29 @@ const TRIM_MIN_MM: f64 = 1.0;
 impl QuadricFit {
     /// The fitted height at `p` and the robust residual scale σ̂ of the kept ring points, or
     /// `None` when the ring cannot support a fit.
-    fn predict(&mut self, positions: &[DVec3], p: DVec3, ring: &[u32]) -> Option<(f64, f64)> {
+    fn predict(
+        &mut self,
+        positions: &[DVec3],
+        p: DVec3,
+        ring: &[u32],
+        use_point: impl Fn(usize) -> bool,
+    ) -> Option<(f64, f64)> {
         self.pts.clear();
-        self.pts
-            .extend(ring.iter().map(|&u| positions[u as usize] - p));
+        self.pts.extend(
+            ring.iter()
+                .filter(|&&u| use_point(u as usize))
+                .map(|&u| positions[u as usize] - p),
+        );
         self.keep.clear();
         self.keep.resize(self.pts.len(), true);
         self.weight.clear();
         self.weight.resize(self.pts.len(), 1.0);
         let mut z = self.solve()?;
-        if self.sigma_of(z.1) > TRIM_MIN_MM {
+        let rough = self
+            .pts
+            .iter()
+            .any(|q| (q.z - eval_quadric(&z.1, q.x, q.y)).abs() > L1_TRIGGER_MM);
+        if rough {
             for _ in 0..L1_ROUNDS {
                 for (i, q) in self.pts.iter().enumerate() {
                     let r = (q.z - eval_quadric(&z.1, q.x, q.y)).abs();
@@ -951,43 +1020,29 @@ mod zz_debug {
         let pair = eval::load_pair(
             std::path::Path::new("/tmp/dr_s20"),
             std::path::Path::new("/tmp/dr_s20_clean"),
-            "subj000_frontal2",
+            "subj003_frontal2",
         )
         .unwrap();
         let m = &pair.noisy;
         let t = Topology::new(m);
-        let rings = Rings::new(&t, 2);
+        let rings = Rings::new(&t, 3);
         let mut f = QuadricFit::default();
-        let v = 1793;
+        let v = 574;
         let p = m.positions_mm[v];
+        for &u in rings.of(v) {
+            let q = m.positions_mm[u as usize] - p;
+            println!(
+                "{u} bnd={} spike={} {:.2} {:.2} {:.2}",
+                t.is_boundary[u as usize], pair.is_spike[u as usize], q.x, q.y, q.z
+            );
+        }
         println!(
-            "p {p:?} ring {:?}",
-            rings
-                .of(v)
-                .iter()
-                .map(|&u| m.positions_mm[u as usize].z - p.z)
-                .collect::<Vec<_>>()
+            "predict int {:?}",
+            f.predict(&m.positions_mm, p, rings.of(v), |u| !t.is_boundary[u])
         );
         println!(
-            "pts xy {:?}",
-            rings
-                .of(v)
-                .iter()
-                .map(|&u| {
-                    let q = m.positions_mm[u as usize] - p;
-                    (q.x, q.y)
-                })
-                .collect::<Vec<_>>()
+            "predict all {:?}",
+            f.predict(&m.positions_mm, p, rings.of(v), |_| true)
         );
-        f.pts.clear();
-        f.pts
-            .extend(rings.of(v).iter().map(|&u| m.positions_mm[u as usize] - p));
-        f.keep.clear();
-        f.keep.resize(f.pts.len(), true);
-        f.weight.clear();
-        f.weight.resize(f.pts.len(), 1.0);
-        println!("solve6 {:?}", f.solve_terms::<6>());
-        println!("solve3 {:?}", f.solve_terms::<3>());
-        println!("predict {:?}", f.predict(&m.positions_mm, p, rings.of(v)));
     }
 }

@@ -352,7 +352,7 @@ fn zz_diag() {
     let pairs = eval::load_pairs(
         std::path::Path::new("/tmp/dr_s20"),
         std::path::Path::new("/tmp/dr_s20_clean"),
-        10,
+        100,
     )
     .unwrap();
     for (label, params) in [
