@@ -1176,21 +1176,36 @@ pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec
 // ---------------------------------------------------------------------------------------------
 
 /// Ground-truth feature points of a synthetic scan: the 9 named generator landmarks plus the
-/// 4 the generator lacks, derived from its iBUG-68 points (`derived[i]` marks them):
+/// 4 the generator lacks, derived from its iBUG-68 points (`derived[i]` marks them) the way the
+/// generic face places its own:
 ///
-/// * **cheeks** — the point of the jaw contour (iBUG 0→8 for the subject's right, 16→8 for the
-///   left) at the nose tip's height, measured along the face's up direction (chin iBUG 8 →
-///   nasion iBUG 27), interpolated linearly between contour points; this is the cheek's
-///   lateral border, as on the generic face;
+/// * **cheeks** — on the generic face the cheek point is the cheek at the nose tip's height,
+///   [`GENERIC_CHEEK_X_MM`] − 48.1 = 11.9 mm lateral of the outer eye corner (12.4 % of the
+///   outer-eye distance; the paper's step 7 looks for it in a box beside the outer eye
+///   corners). The derived point is the same: from each outer eye corner (iBUG 36 / 45),
+///   [`CHEEK_BEYOND_OUTER_EYE`] × the scan's outer-eye distance further out along the
+///   eye line, moved along the face's up direction (chin iBUG 8 → nasion iBUG 27) to the nose
+///   tip's height, then onto the front-most scan surface along z. (Earlier versions took the
+///   jaw contour iBUG 0–16 at that height, i.e. the face's silhouette, which is ~10 mm further
+///   out than the generic face's cheek point and dragged its side off the scan.)
 /// * **forehead** — the midpoint of the inner brow ends (iBUG 21, 22) moved 25 mm up along the
-///   same direction;
-///
-/// each then snapped to the closest point of `surface` (the clean scan).
+///   same direction, snapped to the closest point of `surface` (the clean scan).
 #[derive(Debug, Clone, Copy)]
 pub struct TruthPoints {
     pub landmarks: Landmarks,
     pub derived: [bool; FeaturePoint::COUNT],
 }
+
+/// Frontal x of the built-in generic face's cheek points, mm (`generic_face` grid).
+pub const GENERIC_CHEEK_X_MM: f64 = 60.0;
+/// How far the derived cheek points lie beyond the outer eye corners, as a fraction of the
+/// outer-eye distance: (60 − 48.1) / 96.2 on the generic face.
+pub const CHEEK_BEYOND_OUTER_EYE: f64 = (GENERIC_CHEEK_X_MM
+    - (crate::generic_face::targets::NOSE_TO_INNER_EYE_X
+        + crate::generic_face::targets::INNER_TO_OUTER_EYE_X))
+    / (2.0
+        * (crate::generic_face::targets::NOSE_TO_INNER_EYE_X
+            + crate::generic_face::targets::INNER_TO_OUTER_EYE_X));
 
 /// Height of the derived forehead point above the inner brow ends, mm.
 pub const FOREHEAD_ABOVE_BROWS_MM: f64 = 25.0;
@@ -1228,25 +1243,34 @@ pub fn truth_points(json_path: &Path, surface: &Mesh) -> Result<TruthPoints> {
     let up = (pts[27] - pts[8]).normalize();
     let index = SurfaceIndex::new(surface, 4.0);
     let snap = |x: DVec3| index.closest(x, 50.0).map_or(x, |(_, q)| q);
-    let contour_at = |chain: &[usize]| -> DVec3 {
-        let h = |i: usize| (pts[i] - nose).dot(up);
-        for w in chain.windows(2) {
-            let (a, b) = (h(w[0]), h(w[1]));
-            if (a >= 0.0) != (b >= 0.0) || a == 0.0 {
-                let t = if (a - b).abs() < 1e-12 {
-                    0.0
-                } else {
-                    a / (a - b)
-                };
-                return pts[w[0]].lerp(pts[w[1]], t);
+    // Front-most scan surface at (x, y) of `x`: the highest z of the scan triangles over it.
+    let front_at = |x: DVec3| -> DVec3 {
+        let mut best: Option<f64> = None;
+        for f in 0..surface.face_count() {
+            let poly = surface.faces.get(f);
+            for k in 1..poly.len().saturating_sub(1) {
+                let [a, b, c] =
+                    [poly[0], poly[k], poly[k + 1]].map(|i| surface.positions_mm[i as usize]);
+                let q = DVec2::new(x.x, x.y);
+                if let Some(w) = barycentric2(q, a.truncate(), b.truncate(), c.truncate())
+                    && w.iter().all(|&t| t >= -1e-9)
+                {
+                    let z = a.z * w[0] + b.z * w[1] + c.z * w[2];
+                    best = Some(best.map_or(z, |z0: f64| z0.max(z)));
+                }
             }
         }
-        pts[chain[1]]
+        best.map_or_else(|| snap(x), |z| DVec3::new(x.x, x.y, z))
     };
-    let right: Vec<usize> = (0..=8).collect();
-    let left: Vec<usize> = (8..=16).rev().collect();
-    out[FeaturePoint::CheekRight.index()] = snap(contour_at(&right));
-    out[FeaturePoint::CheekLeft.index()] = snap(contour_at(&left));
+    let (eye_r, eye_l) = (pts[36], pts[45]);
+    let across = eye_l - eye_r;
+    let cheek = |eye: DVec3, outward: DVec3| -> DVec3 {
+        let mut c = eye + outward * CHEEK_BEYOND_OUTER_EYE;
+        c += up * (nose - c).dot(up);
+        front_at(c)
+    };
+    out[FeaturePoint::CheekRight.index()] = cheek(eye_r, -across);
+    out[FeaturePoint::CheekLeft.index()] = cheek(eye_l, across);
     out[FeaturePoint::Forehead.index()] =
         snap((pts[21] + pts[22]) * 0.5 + up * FOREHEAD_ABOVE_BROWS_MM);
     for p in [

@@ -382,3 +382,80 @@ fn debug_one() {
         println!("{p} {x:.1}");
     }
 }
+
+#[test]
+#[ignore]
+fn zz_diag_reg() {
+    let clean = Path::new("/tmp/dr_s20_clean");
+    let generic = generic();
+    let gl = generic.landmarks();
+    for (p, x) in gl.iter() {
+        println!("generic {p} {x:.1}");
+    }
+    for name in ["subj000_frontal1", "subj003_sonrisa"] {
+        let scan = io::read_mesh(&clean.join(format!("{name}.wrl"))).unwrap();
+        let truth = registration::truth_points(&clean.join(format!("{name}.json")), &scan).unwrap();
+        for (k, pts) in [
+            ("13", truth.landmarks.iter().collect::<Vec<_>>()),
+            (
+                "9",
+                truth
+                    .landmarks
+                    .iter()
+                    .filter(|(p, _)| !truth.derived[p.index()])
+                    .collect(),
+            ),
+        ] {
+            let r =
+                registration::register_points(&generic, &scan, &pts, &Default::default()).unwrap();
+            let idx = registration::SurfaceIndex::new(&scan, 4.0);
+            let un: std::collections::HashSet<u32> = r.unmatched_vertices.iter().copied().collect();
+            // bins over generic coords
+            let mut bins: std::collections::BTreeMap<String, (usize, usize, f64)> =
+                Default::default();
+            for (v, p) in r.mesh.positions_mm.iter().enumerate() {
+                let g = generic.mesh.positions_mm[v];
+                let rx = if g.x.abs() > 55.0 {
+                    "side"
+                } else if g.x.abs() > 35.0 {
+                    "mid"
+                } else {
+                    "centre"
+                };
+                let ry = if g.y < -55.0 {
+                    "chin"
+                } else if g.y > 55.0 {
+                    "top"
+                } else {
+                    "band"
+                };
+                let e = bins.entry(format!("{ry}-{rx}")).or_default();
+                e.0 += 1;
+                if un.contains(&(v as u32)) {
+                    e.1 += 1;
+                }
+                e.2 += idx.distance(*p, 200.0);
+            }
+            println!(
+                "{name} {k}pts rigid {:.2} scale {:.3}",
+                r.rigid_rms_mm, r.scan_from_generic.scale
+            );
+            for (b, (n, u, d)) in bins {
+                println!(
+                    "   {b:14} n {n:5} unmatched {u:5} mean dist {:.2}",
+                    d / n as f64
+                );
+            }
+            if k == "13" {
+                let a = r.scan_from_generic;
+                for (p, x) in truth.landmarks.iter() {
+                    let gp = a.apply(gl.get(p));
+                    println!(
+                        "   {p:20} truth {x:.1}  aligned generic {gp:.1}  d {:.1}",
+                        gp.distance(x)
+                    );
+                }
+            }
+        }
+    }
+}

@@ -16,8 +16,10 @@ use crate::feature_points::FeaturePoint;
 use crate::mesh::Mesh;
 use glam::DVec3;
 
-/// Height of the mesh's bottom row (under the chin) and top row (forehead), mm.
-const T_BOTTOM: f64 = -78.0;
+/// Height of the mesh's bottom row (just under the chin point) and top row (forehead), mm.
+/// The bottom row is 3.4 mm below the chin point: further under the chin a frontal scan has
+/// no data (the chin–neck shadow), and registration had to fill those rows (was −78).
+const T_BOTTOM: f64 = -74.0;
 const T_TOP: f64 = 84.0;
 /// Height of the nose-corner row (widest point of the alae), mm.
 const T_NOSE_CORNER: f64 = -5.0;
@@ -28,17 +30,21 @@ const T_CHEEK: f64 = 0.0;
 /// Frontal x of the cheek feature (the cheek's lateral border), mm.
 const X_CHEEK: f64 = 60.0;
 
-/// How far round the head the mesh reaches at each height (ellipse angle, degrees): to the
-/// front of the ears at mid height, narrowing to the chin below and the temples above.
+/// How far round the head the mesh reaches at each height (ellipse angle, degrees): 71° at
+/// mid height (x = ±67 mm, the cheek feature column is at 59°), narrowing to the chin below
+/// and the temples above. A frontal scan sees the side of the face only up to where it turns
+/// ~75–80° away from the scanner (steeper cells are not scanned), and scans are yawed by a
+/// few degrees; the earlier 82° (front of the ears) put ~15 % of the vertices beyond the
+/// scans' silhouette, where registration could only extrapolate them (issue #4).
 const SIDE_ANGLE_DEG: [(f64, f64); 8] = [
-    (-78.0, 56.0),
-    (-70.0, 60.0),
-    (-55.0, 70.0),
-    (-40.0, 78.0),
-    (-20.0, 82.0),
-    (40.0, 82.0),
-    (70.0, 77.0),
-    (84.0, 72.0),
+    (-78.0, 50.0),
+    (-70.0, 54.0),
+    (-55.0, 62.0),
+    (-40.0, 68.0),
+    (-20.0, 71.0),
+    (40.0, 71.0),
+    (70.0, 68.0),
+    (84.0, 64.0),
 ];
 
 /// Eye opening: peak heights (mm) of the upper and lower lid above/below the slit row, and how
