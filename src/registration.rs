@@ -48,14 +48,14 @@
 //!
 //! | set | points | mean mm | p95 mm | unmatched (of 3,760) |
 //! |---|---|---|---|---|
-//! | neutral, clean | 13 | 0.110 (0.68) | 0.45 (5.98) | 146 |
-//! | neutral, clean | 9 GT | 0.259 (0.64) | 1.52 (4.68) | 246 |
-//! | neutral, noisy | 13 | 0.171 (0.74) | 0.64 (5.97) | 211 |
-//! | neutral, noisy | 9 GT | 0.318 (0.70) | 1.63 (4.87) | 315 |
-//! | expressions, clean | 13 | 0.061 (0.54) | 0.19 (4.58) | 94 |
-//! | expressions, clean | 9 GT | 0.230 (0.80) | 1.26 (6.38) | 243 |
-//! | expressions, noisy | 13 | 0.124 (0.59) | 0.38 (4.57) | 163 |
-//! | expressions, noisy | 9 GT | 0.288 (0.85) | 1.41 (6.35) | 319 |
+//! | neutral, clean | 13 | 0.088 (0.68) | 0.38 (6.41) | 127 |
+//! | neutral, clean | 9 GT | 0.228 (0.65) | 1.27 (4.84) | 226 |
+//! | neutral, noisy | 13 | 0.150 (0.74) | 0.58 (6.36) | 192 |
+//! | neutral, noisy | 9 GT | 0.287 (0.71) | 1.40 (4.93) | 297 |
+//! | expressions, clean | 13 | 0.050 (0.53) | 0.15 (4.51) | 78 |
+//! | expressions, clean | 9 GT | 0.159 (0.61) | 0.74 (4.93) | 200 |
+//! | expressions, noisy | 13 | 0.114 (0.59) | 0.34 (4.55) | 149 |
+//! | expressions, noisy | 9 GT | 0.218 (0.66) | 0.90 (4.93) | 277 |
 //!
 //! "13" = the 9 generator landmarks plus cheeks and forehead derived from its iBUG-68 points
 //! ([`truth_points`]). Before (generic face to the front of the ears, cheeks derived at the

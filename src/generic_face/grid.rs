@@ -30,19 +30,22 @@ const T_CHEEK: f64 = 0.0;
 /// Frontal x of the cheek feature (the cheek's lateral border), mm.
 const X_CHEEK: f64 = 60.0;
 
-/// How far round the head the mesh reaches at each height (ellipse angle, degrees): 71° at
-/// mid height (x = ±67 mm, the cheek feature column is at 59°), narrowing to the chin below
-/// and the temples above. A frontal scan sees the side of the face only up to where it turns
-/// ~75–80° away from the scanner (steeper cells are not scanned), and scans are yawed by a
-/// few degrees; the earlier 82° (front of the ears) put ~15 % of the vertices beyond the
-/// scans' silhouette, where registration could only extrapolate them (issue #4).
+/// How far round the head the mesh reaches at each height (ellipse angle, degrees): 68° at
+/// mid height (x = ±66 mm; the cheek feature column is at 59°), narrowing to 45–50° along
+/// the jaw below the mouth and to the temples above. A frontal scan sees the side of the face
+/// only up to where it turns ~75–80° away from the scanner (steeper cells are not scanned),
+/// scans are yawed by a few degrees, and under the jaw line there is the chin–neck shadow:
+/// the earlier extent (82° at mid height, 56–60° at the jaw: the front of the ears) put
+/// 13–23 % of the vertices beyond the scans' coverage, where registration can only
+/// extrapolate them (issue #4). Narrower than this at the jaw squeezes the outer columns
+/// there past the quad edge-ratio limit.
 const SIDE_ANGLE_DEG: [(f64, f64); 8] = [
-    (-78.0, 50.0),
-    (-70.0, 54.0),
+    (-78.0, 45.0),
+    (-70.0, 50.0),
     (-55.0, 62.0),
-    (-40.0, 68.0),
-    (-20.0, 71.0),
-    (40.0, 71.0),
+    (-40.0, 66.0),
+    (-20.0, 68.0),
+    (40.0, 68.0),
     (70.0, 68.0),
     (84.0, 64.0),
 ];

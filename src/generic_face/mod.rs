@@ -6,8 +6,8 @@
 //! smooth feature bumps) sampled by a structured, feature-aligned grid (`grid.rs`):
 //!
 //! * all quads (3,600 quads, no triangles, 3,760 vertices), from the forehead to under the
-//!   chin and round the cheeks to where a frontal scan still sees the face (134 mm wide,
-//!   71° round the head section at mid height);
+//!   chin and round the cheeks to where a frontal scan still sees the face (132 mm wide,
+//!   68° round the head section at mid height, narrower along the jaw);
 //! * frame: millimetres, looking towards +z, y up, x to the subject's left, **nose tip at the
 //!   origin**;
 //! * the mouth is a slit between the mouth corners (upper and lower lip are separate
