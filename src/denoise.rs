@@ -651,7 +651,7 @@ impl MedianLaplacianWork {
                     let all = |_: usize| true;
                     match self.fit.predict(positions, p, rings.of(v), all) {
                         // A rough 2-ring: a spike cluster may hold too large a share of it.
-                        Some((_, sigma)) if sigma > TRIM_MIN_MM => self
+                        Some((_, sigma, _)) if sigma > TRIM_MIN_MM => self
                             .fit
                             .predict(positions, p, rings3.of(v), all)
                             .filter(|e| e.1 < sigma),
@@ -662,7 +662,7 @@ impl MedianLaplacianWork {
             };
             // A rim vertex moves only towards its neighbours' median height and not much
             // past it: a one-sided fit next to other defects can point the wrong way.
-            let estimate = estimate.filter(|&(z, _)| {
+            let estimate = estimate.filter(|&(z, _, _)| {
                 if !topology.is_boundary[v] {
                     return true;
                 }
@@ -681,7 +681,7 @@ impl MedianLaplacianWork {
                 step * towards > 0.0 && step.abs() <= towards.abs() + params.rim_floor_mm
             });
             match estimate {
-                Some((z, sigma)) => {
+                Some((z, sigma, rough)) => {
                     self.candidate[v] = DVec3::new(p.x, p.y, z);
                     self.disp[v] = (z - p.z).abs();
                     let rim = if topology.is_boundary[v] {
@@ -689,7 +689,10 @@ impl MedianLaplacianWork {
                     } else {
                         0.0
                     };
-                    self.floor[v] = floor.max(params.outlier_sigmas * sigma).max(rim);
+                    self.floor[v] = floor
+                        .max(params.outlier_sigmas * sigma)
+                        .max(RING_ROUGHNESS_RATIO * rough)
+                        .max(rim);
                 }
                 None => {
                     self.candidate[v] = p;
@@ -823,6 +826,11 @@ const PLANE_MIN_POINTS: usize = 4;
 /// ring (σ̂ above [`TRIM_MIN_MM`]): a spike cluster inside the ring pulls a least-squares
 /// fit towards it, the L1 fit is not pulled by a minority of outliers in z.
 const L1_ROUNDS: usize = 10;
+/// A vertex is eligible only if its change is at least this many times the ring's own
+/// roughness (90th percentile of the ring residuals below half the change): a spike stands
+/// out of a smooth ring, a vertex on a crease or lip edge the quadric cannot follow has
+/// ring neighbours almost as far off as itself.
+const RING_ROUGHNESS_RATIO: f64 = 3.0;
 /// A first fit with a ring residual above this (mm) is redone by L1 reweighting.
 const L1_TRIGGER_MM: f64 = 2.0;
 /// Ring points with a residual above `max(TRIM_SIGMAS σ̂, TRIM_MIN_MM)` are left out of the
@@ -831,15 +839,16 @@ const TRIM_SIGMAS: f64 = 3.0;
 const TRIM_MIN_MM: f64 = 1.0;
 
 impl QuadricFit {
-    /// The fitted height at `p` and the robust residual scale σ̂ of the kept ring points, or
-    /// `None` when the ring cannot support a fit.
+    /// The fitted height at `p`, the robust residual scale σ̂ of the kept ring points and the
+    /// ring's roughness on the scale of the change (see [`RING_ROUGHNESS_RATIO`]), or `None`
+    /// when the ring cannot support a fit.
     fn predict(
         &mut self,
         positions: &[DVec3],
         p: DVec3,
         ring: &[u32],
         use_point: impl Fn(usize) -> bool,
-    ) -> Option<(f64, f64)> {
+    ) -> Option<(f64, f64, f64)> {
         self.pts.clear();
         self.pts.extend(
             ring.iter()
@@ -883,7 +892,23 @@ impl QuadricFit {
         if !(z.0 >= lo - span - 1.0 && z.0 <= hi + span + 1.0) {
             return None;
         }
-        Some((p.z + z.0, sigma))
+        // How rough the ring is on the scale of this change: the 90th percentile of the ring
+        // residuals below half the change (a cluster's other spikes are above it).
+        let d = z.0.abs();
+        self.res.clear();
+        for q in &self.pts {
+            let r = (q.z - eval_quadric(&z.1, q.x, q.y)).abs();
+            if r < 0.5 * d {
+                self.res.push(r);
+            }
+        }
+        let rough = if self.res.is_empty() {
+            0.0
+        } else {
+            let k = (0.9 * (self.res.len() - 1) as f64).round() as usize;
+            *self.res.select_nth_unstable_by(k, f64::total_cmp).1
+        };
+        Some((p.z + z.0, sigma, rough))
     }
 
     /// Robust σ̂ (1.4826 · median |residual|) of the kept points under `coef`.
