@@ -68,13 +68,17 @@
 //!    3-ring, with an 8 mm floor ([`DenoiseParams::rim_floor_mm`]), and only towards their
 //!    neighbours' median height.
 //!
-//! Result with the defaults (same 100 scans): RMSE 0.200 mm (Laplacian at its best k = 4:
-//! 0.717, Taubin at its best k = 37: 0.762), shrinkage −0.0003 mm, damage to the clean twins
-//! 0.048 mm RMSE, 550 vertices (0.035 %) still more than 2 mm off and max 36 mm: 169 rim spikes
-//! the rim rule does not dare to move (most under the 8 mm rim floor or with a tip-shaped,
-//! unsupported rim), 69 remnants of interior spike clusters, and ~310 vertices on sharp
-//! features (canthus folds, lip corners, the steep face sides) that the quadric mispredicts by
-//! 2–3.5 mm and moves. The goal of max ≤ 2 mm is therefore **not** met.
+//! 4. **Rough rings**: a change must also be at least 3× the ring's own roughness (90th
+//!    percentile of its fit residuals below half the change), so creases and lip edges that a
+//!    quadric cannot follow are left alone.
+//!
+//! Result with the defaults (same 100 scans): RMSE 0.205 mm (Laplacian at its best k = 4:
+//! 0.717, Taubin at its best k = 37: 0.762), shrinkage −0.0002 mm, damage to the clean twins
+//! 0.042 mm RMSE, 435 vertices (0.028 %) still more than 2 mm off and max 40.0 mm: 163 rim
+//! spikes (97 untouched: under the 8 mm rim floor, or a rim tip without interior support),
+//! 62 spike vertices inside the face (23 untouched, mostly in clusters), and 210 vertices on
+//! sharp features (canthus folds, lip corners, the steep sides) that the quadric mispredicts
+//! by 2–3.5 mm and moves. The goal of max ≤ 2 mm is therefore **not** met.
 //!
 //! The literal method is [`DenoiseParams::paper`] (`--paper`): global rule, no floor, the
 //! paper's median → Laplacian estimate.
