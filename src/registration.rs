@@ -46,21 +46,22 @@
 //! the scans (worst scan in brackets); `cargo test --release --no-default-features --test
 //! registration -- --ignored --nocapture evaluation_table`:
 //!
-//! | set | points | mean mm | p95 mm | unmatched (of 3,760) |
+//! | set | points | mean mm | p95 mm | unmatched (of 3,577) |
 //! |---|---|---|---|---|
-//! | neutral, clean | 13 | 0.088 (0.68) | 0.38 (6.41) | 127 |
-//! | neutral, clean | 9 GT | 0.228 (0.65) | 1.27 (4.84) | 226 |
-//! | neutral, noisy | 13 | 0.150 (0.74) | 0.58 (6.36) | 192 |
-//! | neutral, noisy | 9 GT | 0.287 (0.71) | 1.40 (4.93) | 297 |
-//! | expressions, clean | 13 | 0.050 (0.53) | 0.15 (4.51) | 78 |
-//! | expressions, clean | 9 GT | 0.159 (0.61) | 0.74 (4.93) | 200 |
-//! | expressions, noisy | 13 | 0.114 (0.59) | 0.34 (4.55) | 149 |
-//! | expressions, noisy | 9 GT | 0.218 (0.66) | 0.90 (4.93) | 277 |
+//! | neutral, clean | 13 | 0.050 (0.35) | 0.13 (2.30) | 76 |
+//! | neutral, clean | 9 GT | 0.134 (0.46) | 0.35 (2.64) | 138 |
+//! | neutral, noisy | 13 | 0.114 (0.41) | 0.31 (2.34) | 140 |
+//! | neutral, noisy | 9 GT | 0.195 (0.52) | 0.56 (2.49) | 207 |
+//! | expressions, clean | 13 | 0.039 (0.40) | 0.06 (2.94) | 59 |
+//! | expressions, clean | 9 GT | 0.126 (0.52) | 0.47 (4.37) | 156 |
+//! | expressions, noisy | 13 | 0.104 (0.45) | 0.26 (2.90) | 128 |
+//! | expressions, noisy | 9 GT | 0.187 (0.57) | 0.66 (4.38) | 233 |
 //!
 //! "13" = the 9 generator landmarks plus cheeks and forehead derived from its iBUG-68 points
 //! ([`truth_points`]). Before (generic face to the front of the ears, cheeks derived at the
 //! jaw contour, fixed anchors): mean 1.59 / 0.76 mm, p95 11.5 / 5.8 mm (13 / 9 points, neutral
-//! clean) with 758 / 486 vertices unmatched.
+//! clean) with 758 / 486 of 3,760 vertices unmatched. The worst scans now (subject 16, p95
+//! 2.3–4.4 mm) still lose the chin's lower rows and one side of the jaw off the scan.
 
 use crate::feature_points::{FeaturePoint, Landmarks};
 use crate::generic_face::GenericFace;

@@ -379,6 +379,19 @@ fn evaluation_table() {
             let e9: Vec<_> = cases.iter().map(|c| &c.gt9).collect();
             println!("{}", summary(&format!("{label}, {kind}, 13 pts"), &e13));
             println!("{}", summary(&format!("{label}, {kind}, 9 GT pts"), &e9));
+            let mut worst: Vec<_> = cases
+                .iter()
+                .map(|c| {
+                    (
+                        c.all13.surface_distance_mm.p95,
+                        &c.name,
+                        c.all13.unmatched_vertices,
+                    )
+                })
+                .collect();
+            worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+            worst.truncate(3);
+            println!("<!-- worst p95 (13 pts): {worst:?} -->");
         }
     }
 }

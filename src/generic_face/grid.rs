@@ -16,10 +16,11 @@ use crate::feature_points::FeaturePoint;
 use crate::mesh::Mesh;
 use glam::DVec3;
 
-/// Height of the mesh's bottom row (just under the chin point) and top row (forehead), mm.
-/// The bottom row is 3.4 mm below the chin point: further under the chin a frontal scan has
-/// no data (the chin–neck shadow), and registration had to fill those rows (was −78).
-const T_BOTTOM: f64 = -74.0;
+/// Height of the mesh's bottom row (one row under the chin point) and top row (forehead), mm.
+/// The bottom row is 1.4 mm below the chin point (was −78 with 4 rows under the chin): under
+/// the chin a frontal scan has no data (the chin–neck shadow), so registration could only
+/// extrapolate those rows, 5–14 mm off the scan (issue #4).
+const T_BOTTOM: f64 = -72.0;
 const T_TOP: f64 = 84.0;
 /// Height of the nose-corner row (widest point of the alae), mm.
 const T_NOSE_CORNER: f64 = -5.0;
@@ -135,7 +136,7 @@ fn rows() -> Rows {
         targets::FOREHEAD_Y,
         T_TOP,
     ];
-    let counts = [4, 12, 8, 5, 2, 12, 13, 4];
+    let counts = [1, 12, 8, 5, 2, 12, 13, 4];
     let (t, at) = lines(&knots, &counts);
     Rows {
         t,
