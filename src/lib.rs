@@ -6,7 +6,7 @@
 
 /// Headless command implementations behind `facesynth <command>` (main.rs only parses).
 pub mod cli;
-/// Mesh denoising (paper 2.1.1): median + Laplacian filter moving only the largest changes; baselines.
+// Mesh denoising (paper 2.1.1): median + Laplacian filter moving only the largest changes; baselines.
 pub mod denoise;
 /// Typed errors of the library (one-line messages that name the file and the problem).
 pub mod error;
@@ -20,7 +20,7 @@ pub mod ground_truth;
 pub mod io;
 /// The polygon mesh (positions in mm, faces as they come), topology and normals.
 pub mod mesh;
-/// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
+// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
 pub mod registration;
 
 /// The editor window: eframe app, panels, worker thread.
