@@ -59,6 +59,22 @@ pub enum Command {
         #[arg(long)]
         paper: bool,
     },
+    /// Score the denoisers against ground truth: noisy synth_gavab scans and their `--clean`
+    /// twins (same seed). Prints the benchmark table (input, paper, default, baselines at
+    /// their best k) as JSON.
+    EvalDenoise {
+        noisy_dir: PathBuf,
+        clean_dir: PathBuf,
+        /// Use at most this many scans (sorted by name).
+        #[arg(long, default_value_t = usize::MAX)]
+        max_scans: usize,
+        /// Largest k tried for the Laplacian and Taubin baselines.
+        #[arg(long, default_value_t = 60)]
+        k_max: usize,
+        /// Also print the baselines' scores for every k.
+        #[arg(long)]
+        sweeps: bool,
+    },
     /// Register the generic face to a scan (paper 2.1.3) and print the quality report as JSON.
     Register {
         /// Scan mesh (.wrl .vrml .obj .ply .xyz .txt).
@@ -327,13 +343,30 @@ pub fn run(cli: Cli) -> Result<()> {
             io::write_mesh(&output, &mesh)?;
             print_json(&json!({
                 "input": input, "output": output,
-                "method": method.name(), "rule": params.rule,
+                "method": method.name(), "rule": params.rule, "estimator": params.estimator,
                 "iterations_run": report.iterations_run,
                 "vertices_moved": report.vertices_moved,
                 "max_displacement_mm": report.max_displacement_mm,
                 "mean_displacement_mm": report.mean_displacement_mm,
                 "millis": millis,
             }))
+        }
+        Some(Command::EvalDenoise {
+            noisy_dir,
+            clean_dir,
+            max_scans,
+            k_max,
+            sweeps,
+        }) => {
+            let pairs = denoise::eval::load_pairs(&noisy_dir, &clean_dir, max_scans)?;
+            anyhow::ensure!(!pairs.is_empty(), "{}: no scans", noisy_dir.display());
+            let b = denoise::eval::benchmark(&pairs, k_max.max(1))?;
+            let mut v = json!({ "scans": b.scans, "table": b.table });
+            if sweeps {
+                v["laplacian_sweep"] = json!(b.laplacian_sweep);
+                v["taubin_sweep"] = json!(b.taubin_sweep);
+            }
+            print_json(&v)
         }
         Some(Command::Register {
             scan,

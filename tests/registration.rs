@@ -171,6 +171,10 @@ fn names(subjects: usize, scans: &[&str]) -> Vec<String> {
         .collect()
 }
 
+fn generic_vertex_count() -> usize {
+    generic().mesh.vertex_count()
+}
+
 fn check(cases: &[Case], mean_max: f64, p95_max: f64) {
     for c in cases {
         for (label, e) in [("13", &c.all13), ("9", &c.gt9)] {
@@ -182,11 +186,20 @@ fn check(cases: &[Case], mean_max: f64, p95_max: f64) {
                 "{} ({label} points): {m:?}",
                 c.name
             );
+            // All vertices, filled ones included: the goal on every scan of this set
+            // (measured: worst scan mean 0.28 mm, p95 0.73 mm).
             let s = e.surface_distance_mm;
             assert!(
-                s.mean <= 4.0 && s.p95 <= 25.0,
+                s.mean <= 0.5 && s.p95 <= 1.5,
                 "{} ({label} points): {s:?}",
                 c.name
+            );
+            // At least 90 % of the generic vertices are projected, not filled.
+            assert!(
+                e.unmatched_vertices * 10 <= generic_vertex_count(),
+                "{} ({label} points): {} unmatched",
+                c.name,
+                e.unmatched_vertices
             );
         }
         // With 13 points the feature vertices land on the ground truth.
@@ -272,9 +285,25 @@ fn synthetic_regression_clean_and_noisy() {
     let set = names(3, &["frontal1", "sonrisa"]);
     let params = RegistrationParams::default();
     let c = evaluate_dir(&noisy, &clean, &set, &params, false);
-    check(&c, 0.5, 1.5);
     let n = evaluate_dir(&noisy, &clean, &set, &params, true);
+    for (kind, cases) in [("clean", &c), ("noisy", &n)] {
+        println!("{HEADER}");
+        let e13: Vec<_> = cases.iter().map(|c| &c.all13).collect();
+        let e9: Vec<_> = cases.iter().map(|c| &c.gt9).collect();
+        println!("{}", summary(&format!("{kind}, 13 pts"), &e13));
+        println!("{}", summary(&format!("{kind}, 9 GT pts"), &e9));
+    }
+    check(&c, 0.5, 1.5);
     check(&n, 0.5, 1.5);
+    // Averaged over the set, with all 13 points (measured 0.15 / 0.35 mm): the goal.
+    for cases in [&c, &n] {
+        let p95 = cases
+            .iter()
+            .map(|c| c.all13.surface_distance_mm.p95)
+            .sum::<f64>()
+            / 6.0;
+        assert!(p95 <= 1.0, "mean p95 {p95}");
+    }
 }
 
 #[test]
@@ -357,6 +386,19 @@ fn evaluation_table() {
             let e9: Vec<_> = cases.iter().map(|c| &c.gt9).collect();
             println!("{}", summary(&format!("{label}, {kind}, 13 pts"), &e13));
             println!("{}", summary(&format!("{label}, {kind}, 9 GT pts"), &e9));
+            let mut worst: Vec<_> = cases
+                .iter()
+                .map(|c| {
+                    (
+                        c.all13.surface_distance_mm.p95,
+                        &c.name,
+                        c.all13.unmatched_vertices,
+                    )
+                })
+                .collect();
+            worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+            worst.truncate(3);
+            println!("<!-- worst p95 (13 pts): {worst:?} -->");
         }
     }
 }

@@ -16,8 +16,11 @@ use crate::feature_points::FeaturePoint;
 use crate::mesh::Mesh;
 use glam::DVec3;
 
-/// Height of the mesh's bottom row (under the chin) and top row (forehead), mm.
-const T_BOTTOM: f64 = -78.0;
+/// Height of the mesh's bottom row (one row under the chin point) and top row (forehead), mm.
+/// The bottom row is 1.4 mm below the chin point (was −78 with 4 rows under the chin): under
+/// the chin a frontal scan has no data (the chin–neck shadow), so registration could only
+/// extrapolate those rows, 5–14 mm off the scan (issue #4).
+const T_BOTTOM: f64 = -72.0;
 const T_TOP: f64 = 84.0;
 /// Height of the nose-corner row (widest point of the alae), mm.
 const T_NOSE_CORNER: f64 = -5.0;
@@ -28,17 +31,24 @@ const T_CHEEK: f64 = 0.0;
 /// Frontal x of the cheek feature (the cheek's lateral border), mm.
 const X_CHEEK: f64 = 60.0;
 
-/// How far round the head the mesh reaches at each height (ellipse angle, degrees): to the
-/// front of the ears at mid height, narrowing to the chin below and the temples above.
+/// How far round the head the mesh reaches at each height (ellipse angle, degrees): 68° at
+/// mid height (x = ±66 mm; the cheek feature column is at 59°), narrowing to 45–50° along
+/// the jaw below the mouth and to the temples above. A frontal scan sees the side of the face
+/// only up to where it turns ~75–80° away from the scanner (steeper cells are not scanned),
+/// scans are yawed by a few degrees, and under the jaw line there is the chin–neck shadow:
+/// the earlier extent (82° at mid height, 56–60° at the jaw: the front of the ears) put
+/// 13–23 % of the vertices beyond the scans' coverage, where registration can only
+/// extrapolate them (issue #4). Narrower than this at the jaw squeezes the outer columns
+/// there past the quad edge-ratio limit.
 const SIDE_ANGLE_DEG: [(f64, f64); 8] = [
-    (-78.0, 56.0),
-    (-70.0, 60.0),
-    (-55.0, 70.0),
-    (-40.0, 78.0),
-    (-20.0, 82.0),
-    (40.0, 82.0),
-    (70.0, 77.0),
-    (84.0, 72.0),
+    (-78.0, 45.0),
+    (-70.0, 50.0),
+    (-55.0, 62.0),
+    (-40.0, 66.0),
+    (-20.0, 68.0),
+    (40.0, 68.0),
+    (70.0, 68.0),
+    (84.0, 64.0),
 ];
 
 /// Eye opening: peak heights (mm) of the upper and lower lid above/below the slit row, and how
@@ -126,7 +136,7 @@ fn rows() -> Rows {
         targets::FOREHEAD_Y,
         T_TOP,
     ];
-    let counts = [4, 12, 8, 5, 2, 12, 13, 4];
+    let counts = [1, 12, 8, 5, 2, 12, 13, 4];
     let (t, at) = lines(&knots, &counts);
     Rows {
         t,

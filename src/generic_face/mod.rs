@@ -5,8 +5,9 @@
 //! generated from an analytic surface (`shape.rs`: an elliptic head section per height plus
 //! smooth feature bumps) sampled by a structured, feature-aligned grid (`grid.rs`):
 //!
-//! * all quads (3,600 quads, no triangles, 3,760 vertices), from the forehead to under the
-//!   chin and round the cheeks to the front of the ears (~140 mm wide);
+//! * all quads (3,420 quads, no triangles, 3,577 vertices), from the forehead to one row
+//!   (1.4 mm) under the chin point and round the cheeks to where a frontal scan still sees the face (132 mm wide,
+//!   68° round the head section at mid height, narrower along the jaw);
 //! * frame: millimetres, looking towards +z, y up, x to the subject's left, **nose tip at the
 //!   origin**;
 //! * the mouth is a slit between the mouth corners (upper and lower lip are separate
