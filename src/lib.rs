@@ -23,6 +23,8 @@ pub mod ground_truth;
 pub mod io;
 /// The polygon mesh (positions in mm, faces as they come), topology and normals.
 pub mod mesh;
+/// 3D face recognition (paper sections 3–4): range images, Fisherfaces, CMC, GavabDB protocol.
+pub mod recognition;
 /// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
 pub mod registration;
 
