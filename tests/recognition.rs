@@ -114,3 +114,42 @@ fn missing_ground_truth_is_a_failure_not_a_crash() {
     assert!(f.reason.contains("ground-truth"), "{}", f.reason);
     assert_eq!(eval.report.probes, SUBJECTS - 1);
 }
+
+#[test]
+fn evaluate_command_writes_the_report() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let out = tempfile::tempdir().unwrap();
+    let report = out.path().join("report.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(["evaluate", "--metric", "euclidean", "--dataset"])
+        .arg(&dir)
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in [
+        "subjects",
+        "probes",
+        "method",
+        "metric",
+        "rank1",
+        "rank5",
+        "cmc",
+        "by_probe_kind",
+        "failures",
+    ] {
+        assert!(v.get(key).is_some(), "report lacks {key}");
+    }
+    assert_eq!(v["metric"], "euclidean");
+    assert_eq!(v["method"], "eigenfaces");
+    assert_eq!(v["cmc"].as_array().unwrap().len(), SUBJECTS);
+    let stdout: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    assert_eq!(stdout, v);
+}
