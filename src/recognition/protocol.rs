@@ -342,7 +342,15 @@ pub fn evaluate(
     if identities.len() < 2 {
         return Err(Error::invalid(
             dataset,
-            format!("{} gallery identities; need at least 2", identities.len()),
+            format!(
+                "{} gallery identities; need at least 2 ({} scans failed{})",
+                identities.len(),
+                failures.len(),
+                failures
+                    .first()
+                    .map(|f| format!(", first: {}", f.reason))
+                    .unwrap_or_default()
+            ),
         ));
     }
     let id_of = |s: &str| identities.binary_search_by(|x| x.as_str().cmp(s)).ok();

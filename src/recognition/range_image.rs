@@ -432,6 +432,39 @@ mod tests {
     }
 
     #[test]
+    fn pose_rotation_is_undone_by_face_from_scan() {
+        let params = RangeImageParams::default();
+        let nose = DVec3::new(0.0, 0.0, -1000.0);
+        let frontal = plane(false);
+        let want = range_image(&frontal, nose, DMat3::IDENTITY, &params).unwrap();
+        // Pose the scan: rotate about a head centre 100 mm behind the nose.
+        let scan_from_face = DMat3::from_euler(glam::EulerRot::ZXY, 0.05, -0.08, 0.1);
+        let centre = nose - DVec3::new(0.0, 0.0, 100.0);
+        let mut posed = frontal.clone();
+        for p in &mut posed.positions_mm {
+            *p = centre + scan_from_face * (*p - centre);
+        }
+        let posed_nose = centre + scan_from_face * (nose - centre);
+        let got = range_image(&posed, posed_nose, scan_from_face.transpose(), &params).unwrap();
+        let max_diff = want
+            .depth_mm
+            .iter()
+            .zip(&got.depth_mm)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(max_diff < 1e-6, "{max_diff}");
+        // Without normalisation the same scan gives a different image.
+        let raw = range_image(&posed, posed_nose, DMat3::IDENTITY, &params).unwrap();
+        let raw_diff = want
+            .depth_mm
+            .iter()
+            .zip(&raw.depth_mm)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(raw_diff > 1.0, "{raw_diff}");
+    }
+
+    #[test]
     fn off_mesh_nose_tip_is_an_error() {
         let nose = DVec3::new(500.0, 0.0, -1000.0);
         let err = range_image(
