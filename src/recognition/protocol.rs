@@ -21,7 +21,8 @@
 
 use super::cmc::{Rates, rank_of, rates_by_kind};
 use super::fisherfaces::{FisherModel, FisherParams, Method, Metric};
-use super::range_image::{RangeImageParams, range_image};
+use super::pose::{PoseParams, align_to_reference, mean_image};
+use super::range_image::{RangeImage, RangeImageParams, range_image};
 use crate::{Error, Mesh, Result, io};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -39,6 +40,10 @@ pub enum PoseSource {
     Truth,
     /// No pose normalisation: the scan frame is taken as frontal.
     Identity,
+    /// Landmark-free: the rotation about the nose tip that aligns the upper face to the mean
+    /// gallery range image ([`super::pose`]; the mean is built in two rounds, first from
+    /// unaligned then from aligned gallery scans).
+    Icp,
 }
 
 /// Parameters of [`evaluate`].
@@ -54,6 +59,8 @@ pub struct ProtocolParams {
     pub probe_scans: Vec<String>,
     /// Default [`PoseSource::Truth`].
     pub pose: PoseSource,
+    /// Used with [`PoseSource::Icp`].
+    pub icp: PoseParams,
 }
 
 impl Default for ProtocolParams {
@@ -67,6 +74,7 @@ impl Default for ProtocolParams {
                 .map(String::from)
                 .to_vec(),
             pose: PoseSource::Truth,
+            icp: PoseParams::default(),
         }
     }
 }
@@ -153,10 +161,11 @@ pub fn nose_tip(scan_path: &Path, _mesh: &Mesh) -> Result<DVec3> {
 
 /// The rotation that makes a scan frontal (`face_from_scan`, applied to `p − nose tip`). With
 /// [`PoseSource::Truth`]: the transpose of the ground-truth `pose.rotation` (which maps model
-/// to scan), or identity when the scan has no ground truth.
+/// to scan), or identity when the scan has no ground truth. Identity otherwise (for
+/// [`PoseSource::Icp`] it is the starting point of the alignment).
 pub fn face_from_scan(scan_path: &Path, _mesh: &Mesh, source: PoseSource) -> Result<DMat3> {
     // TODO(#7): use the rotation of the registration to the generic face instead.
-    if source == PoseSource::Identity {
+    if source != PoseSource::Truth {
         return Ok(DMat3::IDENTITY);
     }
     let Some(json) = truth_json(scan_path) else {
@@ -253,6 +262,7 @@ fn make_sample(
     subject: &str,
     kind: &str,
     params: &ProtocolParams,
+    reference: Option<&RangeImage>,
 ) -> std::result::Result<(Sample, Frame), Failure> {
     let fail = |e: Error| Failure {
         file: path.to_path_buf(),
@@ -261,10 +271,14 @@ fn make_sample(
     let mesh = io::read_mesh(path).map_err(fail)?;
     let (nose, rot) = match frame {
         Some(f) => f,
-        None => (
-            nose_tip(path, &mesh).map_err(fail)?,
-            face_from_scan(path, &mesh, params.pose).map_err(fail)?,
-        ),
+        None => {
+            let nose = nose_tip(path, &mesh).map_err(fail)?;
+            let rot = face_from_scan(path, &mesh, params.pose).map_err(fail)?;
+            match reference {
+                Some(r) => (nose, align_to_reference(&mesh, nose, rot, r, &params.icp)),
+                None => (nose, rot),
+            }
+        }
     };
     let img = range_image(&mesh, nose, rot, &params.range).map_err(fail)?;
     let sample = Sample {
@@ -274,6 +288,60 @@ fn make_sample(
         features: img.depth_mm,
     };
     Ok((sample, (nose, rot)))
+}
+
+/// The reference for [`PoseSource::Icp`]: the mean range image of the gallery scans, first
+/// unaligned, then (second round) each aligned to the first mean.
+fn icp_reference(scans: &[ScanFile], params: &ProtocolParams) -> Result<RangeImage> {
+    let gallery: Vec<&ScanFile> = scans
+        .iter()
+        .filter(|s| params.gallery_scans.contains(&s.scan))
+        .collect();
+    let mut reference: Option<RangeImage> = None;
+    for _round in 0..2 {
+        let images: Vec<RangeImage> = gallery
+            .par_iter()
+            .filter_map(|s| {
+                make_sample(
+                    &s.path,
+                    None,
+                    &s.subject,
+                    &s.scan,
+                    params,
+                    reference.as_ref(),
+                )
+                .ok()
+                .map(|(sample, _)| sample.features)
+            })
+            .map(|depth| RangeImage {
+                depth_mm: depth,
+                ..blank_image(&params.range)
+            })
+            .collect();
+        let refs: Vec<&RangeImage> = images.iter().collect();
+        reference = Some(mean_image(&refs).ok_or_else(|| {
+            Error::algorithm(
+                "pose",
+                "no gallery scan gave a range image for the reference",
+            )
+        })?);
+    }
+    Ok(reference.unwrap())
+}
+
+/// A range image of the grid with the elliptic mask and zero depths.
+fn blank_image(p: &RangeImageParams) -> RangeImage {
+    let mask = p.mask();
+    RangeImage {
+        cols: p.cols,
+        rows: p.rows,
+        spacing_mm: p.spacing_mm,
+        depth_mm: vec![0.0; p.len()],
+        measured: mask.clone(),
+        mask,
+        coverage: 1.0,
+        spikes_rejected: 0,
+    }
 }
 
 /// Runs the protocol on `dataset`, with the synthetic gallery expressions of `augmented` if
@@ -297,9 +365,22 @@ pub fn evaluate(
             ),
         ));
     }
+    let reference = match params.pose {
+        PoseSource::Icp => Some(icp_reference(&scans, params)?),
+        _ => None,
+    };
     let results: Vec<_> = scans
         .par_iter()
-        .map(|s| make_sample(&s.path, None, &s.subject, &s.scan, params))
+        .map(|s| {
+            make_sample(
+                &s.path,
+                None,
+                &s.subject,
+                &s.scan,
+                params,
+                reference.as_ref(),
+            )
+        })
         .collect();
     let mut failures = Vec::new();
     let mut gallery = Vec::new();
@@ -327,7 +408,7 @@ pub fn evaluate(
     }
     let synthetic: Vec<_> = synthetic_jobs
         .par_iter()
-        .map(|(p, frame, subject)| make_sample(p, Some(*frame), subject, "synthetic", params))
+        .map(|(p, frame, subject)| make_sample(p, Some(*frame), subject, "synthetic", params, None))
         .collect();
     for r in synthetic {
         match r {

@@ -85,6 +85,19 @@ impl RangeImageParams {
         )
     }
 
+    /// The elliptic mask, row-major: true inside the ellipse centred on the nose tip.
+    pub fn mask(&self) -> Vec<bool> {
+        let mut mask = vec![false; self.len()];
+        for j in 0..self.rows {
+            for i in 0..self.cols {
+                let (x, y) = self.sample_xy_mm(i, j);
+                let e = (x / self.ellipse_semi_x_mm).powi(2) + (y / self.ellipse_semi_y_mm).powi(2);
+                mask[j * self.cols + i] = e <= 1.0;
+            }
+        }
+        mask
+    }
+
     fn validate(&self) -> Result<()> {
         let ok = self.cols >= 3
             && self.rows >= 3
@@ -190,15 +203,7 @@ pub fn range_image(
             }
         }
     }
-    // Elliptic mask.
-    let mut mask = vec![false; cols * rows];
-    for j in 0..rows {
-        for i in 0..cols {
-            let (x, y) = params.sample_xy_mm(i, j);
-            let e = (x / params.ellipse_semi_x_mm).powi(2) + (y / params.ellipse_semi_y_mm).powi(2);
-            mask[j * cols + i] = e <= 1.0;
-        }
-    }
+    let mask = params.mask();
     let measured: Vec<bool> = (0..depth.len())
         .map(|k| mask[k] && depth[k] > f64::NEG_INFINITY)
         .collect();
