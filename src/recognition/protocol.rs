@@ -18,6 +18,22 @@
 //! they read the synthetic ground truth beside the scan (`<subject>_<scan>.json`).
 //! TODO(#7): call the automatic landmark detector and the registration's rotation when no
 //! ground truth is present.
+//!
+//! **Measured** (61 noisy synthetic subjects, `synth_gavab.py --subjects 61 --seed 7`; gallery
+//! frontal1 only, so Eigenfaces; 244 probes; ground-truth nose tip and pose), rank-1 / rank-5:
+//!
+//! | probes | cosine | Euclidean |
+//! |---|---|---|
+//! | all 244 | 70.5 / 83.2 % | 70.1 / 84.0 % |
+//! | frontal2 | 100 / 100 % | 100 / 100 % |
+//! | sonrisa | 82.0 / 96.7 % | 95.1 / 100 % |
+//! | gesto | 85.2 / 90.2 % | 72.1 / 90.2 % |
+//! | risa | 14.8 / 45.9 % | 13.1 / 45.9 % |
+//!
+//! The clean twin gives the same figures (noise is not what limits it; the open-mouth laugh
+//! is). `--pose identity`: 20.1 / 21.7 % rank-1; `--pose icp`: 52.5 / 51.2 % (cosine /
+//! Euclidean). scikit-learn (PCA → LinearDiscriminantAnalysis, scripts/sklearn_crosscheck.py)
+//! on the same feature vectors ranks every probe identically.
 
 use super::cmc::{Rates, rank_of, rates_by_kind};
 use super::fisherfaces::{FisherModel, FisherParams, Method, Metric};
