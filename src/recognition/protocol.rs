@@ -31,7 +31,7 @@
 //! | risa | 14.8 / 45.9 % | 13.1 / 45.9 % |
 //!
 //! The clean twin gives the same figures (noise is not what limits it; the open-mouth laugh
-//! is). `--pose identity`: 20.1 / 21.7 % rank-1; `--pose icp`: 52.5 / 51.2 % (cosine /
+//! is). `--pose identity`: 20.1 / 21.7 % rank-1; `--pose icp`: 58.2 / 57.4 % (cosine /
 //! Euclidean). scikit-learn (PCA → LinearDiscriminantAnalysis, scripts/sklearn_crosscheck.py)
 //! on the same feature vectors ranks every probe identically.
 
