@@ -148,6 +148,10 @@ pub enum Command {
         #[arg(long)]
         name: Option<String>,
     },
+    /// Face recognition on a GavabDB-style dataset (paper section 4): Fisherfaces on range
+    /// images, gallery = frontal1 (+ synthetic expressions), probes = frontal2, sonrisa, risa,
+    /// gesto; prints the report JSON (rank-1, rank-5, CMC, per probe kind, failures).
+    Evaluate(EvaluateArgs),
     /// Print timings as JSON.
     Bench {
         #[command(subcommand)]
@@ -195,6 +199,36 @@ pub enum Command {
     },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
+}
+
+/// Options of `facesynth evaluate`.
+#[derive(Debug, Clone, Args)]
+pub struct EvaluateArgs {
+    /// Folder of `<subject>_<scan>.wrl` scans (with `<subject>_<scan>.json` ground truth for
+    /// the nose tip and pose).
+    #[arg(long)]
+    pub dataset: PathBuf,
+    /// Synthetic gallery expressions: `DIR/<subject>_frontal1/*.obj`, in the scan's frame.
+    #[arg(long)]
+    pub augmented: Option<PathBuf>,
+    /// Distance between projected faces.
+    #[arg(long, value_enum, default_value_t = crate::recognition::Metric::Cosine)]
+    pub metric: crate::recognition::Metric,
+    /// Also write the report JSON to this file.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Pose normalisation before resampling.
+    #[arg(long, value_enum, default_value_t = crate::recognition::PoseSource::Truth)]
+    pub pose: crate::recognition::PoseSource,
+    /// Comma-separated scan kinds forming the gallery.
+    #[arg(long, default_value = "frontal1")]
+    pub gallery_scans: String,
+    /// Comma-separated scan kinds used as probes.
+    #[arg(long, default_value = "frontal2,sonrisa,risa,gesto")]
+    pub probe_scans: String,
+    /// Write the feature vectors, labels and our ranks as JSON (for scripts/sklearn_crosscheck.py).
+    #[arg(long)]
+    pub features: Option<PathBuf>,
 }
 
 /// What `facesynth bench` measures.
@@ -424,6 +458,7 @@ pub fn run(cli: Cli) -> Result<()> {
             &out,
             name.as_deref(),
         )?),
+        Some(Command::Evaluate(args)) => print_json(&evaluate(&args)?),
         Some(Command::Bench {
             what: BenchWhat::Fem,
         }) => print_json(&fem::bench_fem()?),
@@ -586,6 +621,34 @@ pub fn register(
     }
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+    }
+    Ok(value)
+}
+
+/// `facesynth evaluate`: the recognition report as JSON.
+pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
+    use crate::recognition::ProtocolParams;
+    let list = |s: &str| -> Vec<String> {
+        s.split(',')
+            .map(str::trim)
+            .filter(|x| !x.is_empty())
+            .map(String::from)
+            .collect()
+    };
+    let params = ProtocolParams {
+        metric: args.metric,
+        pose: args.pose,
+        gallery_scans: list(&args.gallery_scans),
+        probe_scans: list(&args.probe_scans),
+        ..ProtocolParams::default()
+    };
+    let eval = crate::recognition::evaluate(&args.dataset, args.augmented.as_deref(), &params)?;
+    let value = serde_json::to_value(&eval.report)?;
+    if let Some(path) = &args.report {
+        io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+    }
+    if let Some(path) = &args.features {
+        io::write_text_atomic(path, &serde_json::to_string(&eval.features_json())?)?;
     }
     Ok(value)
 }

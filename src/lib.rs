@@ -29,6 +29,8 @@ pub mod landmarks;
 pub mod mesh;
 /// The per-scan pipeline shared by the commands and the editor: denoise → landmarks → register.
 pub mod pipeline;
+/// 3D face recognition (paper sections 3–4): range images, Fisherfaces, CMC, GavabDB protocol.
+pub mod recognition;
 /// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
 pub mod registration;
 

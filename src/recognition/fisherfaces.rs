@@ -1,0 +1,393 @@
+//! Fisherfaces (paper section 3, eqs. 1–9): PCA to M − c dimensions, then LDA to c − 1.
+//!
+//! * Ψ (eq. 7) is the mean of the M training vectors Γ, A = [Γ₁ − Ψ … Γ_M − Ψ] (d × M).
+//! * **PCA** (eqs. 3–4): the eigenvectors of S_T = A Aᵀ come from the M × M Gram matrix
+//!   G = Aᵀ A (d ≫ M): G v = λ v ⇒ S_T (A v) = λ (A v), and u = A v / √λ has unit length.
+//!   The leading M − c are kept (fewer if the data has lower rank), which makes S_w regular.
+//! * **LDA** (eqs. 2, 5, 6, 8) in the PCA space: S_b w = λ S_w w, solved through the Cholesky
+//!   factor S_w = L Lᵀ as the symmetric problem (L⁻¹ S_b L⁻ᵀ) y = λ y, w = L⁻ᵀ y; the c − 1
+//!   leading w are kept, so the projected within-class scatter is the identity.
+//! * U_opt = U_pca U_lda (eq. 1), Ω = (Γ − Ψ)ᵀ U_opt (eq. 9).
+//!
+//! With one training sample per class (M = c) S_w = 0 and LDA is undefined: the model falls
+//! back to **Eigenfaces** (PCA to M − 1 dimensions) and says so in [`FisherModel::method`].
+
+use crate::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+/// How the projection was built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// PCA to M − c, then LDA to c − 1 (paper eqs. 1–9).
+    Fisherfaces,
+    /// PCA only, to M − 1 dimensions: one sample per class, so S_w = 0 and LDA is undefined.
+    Eigenfaces,
+}
+
+/// Distance between projected faces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Metric {
+    /// 1 − cos(angle); 0 for parallel vectors, 1 when either is zero.
+    #[default]
+    Cosine,
+    /// ‖a − b‖.
+    Euclidean,
+}
+
+impl Metric {
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::Cosine => "cosine",
+            Metric::Euclidean => "euclidean",
+        }
+    }
+
+    /// Distance between two projected vectors of equal length.
+    pub fn distance(self, a: &[f64], b: &[f64]) -> f64 {
+        debug_assert_eq!(a.len(), b.len());
+        match self {
+            Metric::Euclidean => a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum::<f64>()
+                .sqrt(),
+            Metric::Cosine => {
+                let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+                for (x, y) in a.iter().zip(b) {
+                    ab += x * y;
+                    aa += x * x;
+                    bb += y * y;
+                }
+                if aa == 0.0 || bb == 0.0 {
+                    1.0
+                } else {
+                    (1.0 - ab / (aa.sqrt() * bb.sqrt())).max(0.0)
+                }
+            }
+        }
+    }
+}
+
+/// Parameters of [`FisherModel::train`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FisherParams {
+    /// PCA eigenvalues below this fraction of the largest count as zero (rank cut). Default
+    /// 1e-10.
+    pub rank_tolerance: f64,
+}
+
+impl Default for FisherParams {
+    fn default() -> Self {
+        FisherParams {
+            rank_tolerance: 1e-10,
+        }
+    }
+}
+
+/// A trained projection Ω = (Γ − Ψ)ᵀ U_opt.
+#[derive(Debug, Clone)]
+pub struct FisherModel {
+    /// Ψ, the training mean (length d).
+    pub mean: DVector<f64>,
+    /// U_opt (d × output dims).
+    pub basis: DMatrix<f64>,
+    pub method: Method,
+    /// Dimensions kept by the PCA step (M − c, or M − 1 for Eigenfaces; less if rank-deficient).
+    pub pca_dims: usize,
+    /// Number of classes c.
+    pub classes: usize,
+    /// Number of training samples M.
+    pub samples: usize,
+}
+
+impl FisherModel {
+    /// Trains on `samples` (each of length d) with class `labels` (any ids; ≥ 2 classes).
+    pub fn train(samples: &[Vec<f64>], labels: &[usize], params: &FisherParams) -> Result<Self> {
+        let m = samples.len();
+        if m != labels.len() {
+            return Err(Error::algorithm(
+                "fisherfaces",
+                format!("{m} samples but {} labels", labels.len()),
+            ));
+        }
+        let mut ids: Vec<usize> = labels.to_vec();
+        ids.sort_unstable();
+        ids.dedup();
+        let c = ids.len();
+        if c < 2 {
+            return Err(Error::algorithm(
+                "fisherfaces",
+                format!("need at least 2 classes, got {c}"),
+            ));
+        }
+        let d = samples[0].len();
+        if d == 0 || samples.iter().any(|s| s.len() != d) {
+            return Err(Error::algorithm(
+                "fisherfaces",
+                "samples must be non-empty vectors of equal length",
+            ));
+        }
+        if samples.iter().flatten().any(|x| !x.is_finite()) {
+            return Err(Error::algorithm("fisherfaces", "a sample is not finite"));
+        }
+        let class_of: Vec<usize> = labels
+            .iter()
+            .map(|l| ids.binary_search(l).unwrap())
+            .collect();
+        let mut mean = DVector::<f64>::zeros(d);
+        for s in samples {
+            mean += DVector::from_column_slice(s);
+        }
+        mean /= m as f64;
+        let mut a = DMatrix::<f64>::zeros(d, m);
+        for (k, s) in samples.iter().enumerate() {
+            let col = DVector::from_column_slice(s) - &mean;
+            a.set_column(k, &col);
+        }
+        let method = if m > c {
+            Method::Fisherfaces
+        } else {
+            Method::Eigenfaces
+        };
+        let want = match method {
+            Method::Fisherfaces => m - c,
+            Method::Eigenfaces => m - 1,
+        };
+        // PCA through the Gram matrix.
+        let gram = a.transpose() * &a;
+        let eig = gram.symmetric_eigen();
+        let mut order: Vec<usize> = (0..m).collect();
+        order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+        let top = eig.eigenvalues[order[0]].max(0.0);
+        let kept: Vec<usize> = order
+            .into_iter()
+            .filter(|&i| eig.eigenvalues[i] > params.rank_tolerance * top && top > 0.0)
+            .take(want)
+            .collect();
+        let k = kept.len();
+        if k == 0 {
+            return Err(Error::algorithm(
+                "fisherfaces",
+                "all training samples are identical (no variance)",
+            ));
+        }
+        let mut v = DMatrix::<f64>::zeros(m, k);
+        for (col, &i) in kept.iter().enumerate() {
+            let s = 1.0 / eig.eigenvalues[i].sqrt();
+            v.set_column(col, &(eig.eigenvectors.column(i) * s));
+        }
+        let u_pca = &a * v; // d × k, orthonormal columns
+        if method == Method::Eigenfaces {
+            return Ok(FisherModel {
+                mean,
+                basis: u_pca,
+                method,
+                pca_dims: k,
+                classes: c,
+                samples: m,
+            });
+        }
+        // LDA in the PCA space.
+        let y = u_pca.transpose() * &a; // k × m, zero mean
+        let mut class_mean = DMatrix::<f64>::zeros(k, c);
+        let mut count = vec![0usize; c];
+        for (s, &cl) in class_of.iter().enumerate() {
+            let mut col = class_mean.column_mut(cl);
+            col += y.column(s);
+            count[cl] += 1;
+        }
+        for cl in 0..c {
+            let n = count[cl] as f64;
+            class_mean.column_mut(cl).unscale_mut(n);
+        }
+        let mut sb = DMatrix::<f64>::zeros(k, k);
+        for cl in 0..c {
+            let mu = class_mean.column(cl);
+            sb.ger(count[cl] as f64, &mu, &mu, 1.0);
+        }
+        let mut within = y.clone();
+        for (s, &cl) in class_of.iter().enumerate() {
+            let mut col = within.column_mut(s);
+            col -= class_mean.column(cl);
+        }
+        let sw = &within * within.transpose();
+        let chol = sw.clone().cholesky().ok_or_else(|| {
+            Error::algorithm(
+                "fisherfaces",
+                "within-class scatter is singular in the PCA space (duplicate samples?)",
+            )
+        })?;
+        let l = chol.l();
+        let x = l
+            .solve_lower_triangular(&sb)
+            .ok_or_else(|| Error::algorithm("fisherfaces", "singular Cholesky factor"))?;
+        let cmat = l
+            .solve_lower_triangular(&x.transpose())
+            .ok_or_else(|| Error::algorithm("fisherfaces", "singular Cholesky factor"))?;
+        let cmat = (&cmat + cmat.transpose()) * 0.5;
+        let e = cmat.symmetric_eigen();
+        let mut order: Vec<usize> = (0..k).collect();
+        order.sort_by(|&i, &j| e.eigenvalues[j].total_cmp(&e.eigenvalues[i]));
+        let out = (c - 1).min(k);
+        let mut ysel = DMatrix::<f64>::zeros(k, out);
+        for (col, &i) in order.iter().take(out).enumerate() {
+            ysel.set_column(col, &e.eigenvectors.column(i));
+        }
+        let w = l
+            .tr_solve_lower_triangular(&ysel)
+            .ok_or_else(|| Error::algorithm("fisherfaces", "singular Cholesky factor"))?;
+        Ok(FisherModel {
+            mean,
+            basis: u_pca * w,
+            method,
+            pca_dims: k,
+            classes: c,
+            samples: m,
+        })
+    }
+
+    /// Output dimensions (c − 1 for Fisherfaces).
+    pub fn dims(&self) -> usize {
+        self.basis.ncols()
+    }
+
+    /// Ω = (Γ − Ψ)ᵀ U_opt (eq. 9).
+    pub fn project(&self, sample: &[f64]) -> Vec<f64> {
+        let centred = DVector::from_column_slice(sample) - &self.mean;
+        self.basis.tr_mul(&centred).as_slice().to_vec()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random numbers in [−1, 1) (xorshift).
+    fn noise(state: &mut u64) -> f64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    /// `classes` clusters in 200 dims: centres far apart along random directions, a large
+    /// shared nuisance direction (within-class) that PCA alone would favour.
+    fn clusters(classes: usize, per_class: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<usize>) {
+        let mut st = seed;
+        let d = 200;
+        let centres: Vec<Vec<f64>> = (0..classes)
+            .map(|_| (0..d).map(|_| noise(&mut st)).collect())
+            .collect();
+        let nuisance: Vec<f64> = (0..d).map(|_| noise(&mut st)).collect();
+        let mut xs = Vec::new();
+        let mut ls = Vec::new();
+        for (cl, c) in centres.iter().enumerate() {
+            for _ in 0..per_class {
+                let t = 20.0 * noise(&mut st);
+                xs.push(
+                    (0..d)
+                        .map(|i| c[i] + t * nuisance[i] + 0.05 * noise(&mut st))
+                        .collect(),
+                );
+                ls.push(cl * 10 + 3);
+            }
+        }
+        (xs, ls)
+    }
+
+    fn nearest(model: &FisherModel, gx: &[Vec<f64>], gl: &[usize], x: &[f64], m: Metric) -> usize {
+        let p = model.project(x);
+        let mut best = (f64::INFINITY, 0);
+        for (g, &l) in gx.iter().zip(gl) {
+            let dist = m.distance(&model.project(g), &p);
+            if dist < best.0 {
+                best = (dist, l);
+            }
+        }
+        best.1
+    }
+
+    #[test]
+    fn lda_separates_clusters_on_held_out_samples() {
+        // Same seed → same centres and nuisance direction; samples 5..8 of every class in the
+        // second draw are fresh, held-out samples.
+        let (gx, gl) = clusters(8, 5, 7);
+        let (all, all_l) = clusters(8, 8, 7);
+        let model = FisherModel::train(&gx, &gl, &FisherParams::default()).unwrap();
+        assert_eq!(model.method, Method::Fisherfaces);
+        assert_eq!(model.pca_dims, 40 - 8);
+        assert_eq!(model.dims(), 7);
+        for m in [Metric::Cosine, Metric::Euclidean] {
+            let held_out: Vec<usize> = (0..all.len()).filter(|k| k % 8 >= 5).collect();
+            let correct = held_out
+                .iter()
+                .filter(|&&k| nearest(&model, &gx, &gl, &all[k], m) == all_l[k])
+                .count();
+            assert_eq!(
+                correct,
+                held_out.len(),
+                "{m:?}: LDA must classify every held-out sample"
+            );
+        }
+    }
+
+    #[test]
+    fn projected_within_class_scatter_is_identity() {
+        let (gx, gl) = clusters(5, 6, 3);
+        let model = FisherModel::train(&gx, &gl, &FisherParams::default()).unwrap();
+        let proj: Vec<Vec<f64>> = gx.iter().map(|x| model.project(x)).collect();
+        let k = model.dims();
+        let mut sw = DMatrix::<f64>::zeros(k, k);
+        for cl in 0..5 {
+            let members: Vec<&Vec<f64>> =
+                (0..30).filter(|&s| s / 6 == cl).map(|s| &proj[s]).collect();
+            let mu: Vec<f64> = (0..k)
+                .map(|i| members.iter().map(|p| p[i]).sum::<f64>() / members.len() as f64)
+                .collect();
+            for p in members {
+                let dv = DVector::from_iterator(k, (0..k).map(|i| p[i] - mu[i]));
+                sw += &dv * dv.transpose();
+            }
+        }
+        assert!((sw - DMatrix::identity(k, k)).abs().max() < 1e-6);
+    }
+
+    #[test]
+    fn one_sample_per_class_falls_back_to_eigenfaces() {
+        let (gx, gl) = clusters(6, 1, 11);
+        let model = FisherModel::train(&gx, &gl, &FisherParams::default()).unwrap();
+        assert_eq!(model.method, Method::Eigenfaces);
+        assert_eq!(model.dims(), 5);
+        // PCA basis is orthonormal.
+        let g = model.basis.transpose() * &model.basis;
+        assert!((g - DMatrix::identity(5, 5)).abs().max() < 1e-9);
+        // A training sample is its own nearest neighbour.
+        for (x, &l) in gx.iter().zip(&gl) {
+            assert_eq!(nearest(&model, &gx, &gl, x, Metric::Euclidean), l);
+        }
+    }
+
+    #[test]
+    fn metric_properties() {
+        let a = [1.0, 2.0, -3.0];
+        assert_eq!(Metric::Cosine.distance(&a, &a), 0.0);
+        assert_eq!(Metric::Euclidean.distance(&a, &a), 0.0);
+        let b = [2.0, 4.0, -6.0];
+        assert!(Metric::Cosine.distance(&a, &b).abs() < 1e-12);
+        let c = [-1.0, -2.0, 3.0];
+        assert!((Metric::Cosine.distance(&a, &c) - 2.0).abs() < 1e-12);
+        assert!((Metric::Euclidean.distance(&[0.0, 0.0], &[3.0, 4.0]) - 5.0).abs() < 1e-12);
+        assert_eq!(Metric::Cosine.distance(&[0.0; 3], &a), 1.0);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let (gx, _) = clusters(1, 4, 1);
+        assert!(FisherModel::train(&gx, &[0, 0, 0, 0], &FisherParams::default()).is_err());
+        assert!(FisherModel::train(&gx, &[0, 1], &FisherParams::default()).is_err());
+    }
+}

@@ -1,0 +1,155 @@
+//! Recognition on a small generated synthetic GavabDB-like set (paper section 4 protocol).
+
+mod common;
+
+use facesynth::io;
+use facesynth::recognition::{Method, Metric, PoseSource, ProtocolParams, evaluate, protocol};
+use std::path::Path;
+
+const SUBJECTS: usize = 6;
+const SEED: u64 = 31;
+
+fn check_cmc(cmc: &[f64], n: usize) {
+    assert_eq!(cmc.len(), n);
+    assert!(cmc.windows(2).all(|w| w[0] <= w[1]), "{cmc:?}");
+    assert_eq!(*cmc.last().unwrap(), 1.0);
+}
+
+#[test]
+fn neutral_gallery_recognises_neutral_probes_with_eigenfaces() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    for metric in [Metric::Cosine, Metric::Euclidean] {
+        let params = ProtocolParams {
+            metric,
+            ..ProtocolParams::default()
+        };
+        let eval = evaluate(&dir, None, &params).unwrap();
+        let r = &eval.report;
+        assert!(r.failures.is_empty(), "{:?}", r.failures);
+        assert_eq!(r.subjects, SUBJECTS);
+        assert_eq!(r.probes, 4 * SUBJECTS);
+        assert_eq!(r.method, Method::Eigenfaces, "one sample per class: no LDA");
+        assert!(r.method_note.contains("S_w = 0"));
+        assert_eq!(r.feature_length, 9879);
+        check_cmc(&r.cmc, SUBJECTS);
+        for rates in r.by_probe_kind.values() {
+            check_cmc(&rates.cmc, SUBJECTS);
+            assert_eq!(rates.probes, SUBJECTS);
+        }
+        // Chance is 1/6; the second neutral scan differs only in pose, grid phase and noise.
+        let frontal2 = r.by_probe_kind["frontal2"].rank1;
+        assert!(
+            frontal2 >= 5.0 / 6.0,
+            "{metric:?}: frontal2 rank-1 {frontal2}"
+        );
+    }
+}
+
+#[test]
+fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    // An "augmented" folder with one pseudo-expression per subject: the frontal1 scan with a
+    // smooth 3 mm bulge below the nose, written as OBJ in the scan's frame.
+    let aug = tempfile::tempdir().unwrap();
+    for s in protocol::list_scans(&dir).unwrap() {
+        if s.scan != "frontal1" {
+            continue;
+        }
+        let mut mesh = io::read_mesh(&s.path).unwrap();
+        let nose = protocol::nose_tip(&s.path, &mesh).unwrap();
+        for p in &mut mesh.positions_mm {
+            let dy = p.y - (nose.y - 40.0);
+            p.z += 3.0 * (-(dy * dy + (p.x - nose.x).powi(2)) / 400.0).exp();
+        }
+        let out = aug.path().join(format!("{}_frontal1", s.subject));
+        std::fs::create_dir_all(&out).unwrap();
+        io::write_mesh(&out.join("bulge.obj"), &mesh).unwrap();
+    }
+    let eval = evaluate(&dir, Some(aug.path()), &ProtocolParams::default()).unwrap();
+    let r = &eval.report;
+    assert!(r.failures.is_empty(), "{:?}", r.failures);
+    assert_eq!(r.gallery_samples, 2 * SUBJECTS);
+    assert_eq!(r.synthetic_gallery_samples, SUBJECTS);
+    assert_eq!(r.method, Method::Fisherfaces);
+    assert_eq!(r.pca_dims, 2 * SUBJECTS - SUBJECTS);
+    assert_eq!(r.projected_dims, SUBJECTS - 1);
+    check_cmc(&r.cmc, SUBJECTS);
+
+    // Gallery of both neutral scans, expressions as probes: LDA with real within-class data.
+    let params = ProtocolParams {
+        gallery_scans: vec!["frontal1".into(), "frontal2".into()],
+        probe_scans: vec!["sonrisa".into(), "risa".into(), "gesto".into()],
+        ..ProtocolParams::default()
+    };
+    let eval = evaluate(&dir, None, &params).unwrap();
+    let r = &eval.report;
+    assert_eq!(r.method, Method::Fisherfaces);
+    assert_eq!(r.probes, 3 * SUBJECTS);
+    assert!(r.rank1 > 1.0 / SUBJECTS as f64, "rank-1 {}", r.rank1);
+    check_cmc(&r.cmc, SUBJECTS);
+}
+
+#[test]
+fn missing_ground_truth_is_a_failure_not_a_crash() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let copy = tempfile::tempdir().unwrap();
+    for s in protocol::list_scans(&dir).unwrap() {
+        let name = s.path.file_name().unwrap();
+        std::fs::copy(&s.path, copy.path().join(name)).unwrap();
+        // Ground truth for every scan but subject 0's frontal2.
+        if !(s.subject == "subj000" && s.scan == "frontal2") {
+            let json = s.path.with_extension("json");
+            std::fs::copy(&json, copy.path().join(json.file_name().unwrap())).unwrap();
+        }
+    }
+    let params = ProtocolParams {
+        pose: PoseSource::Identity,
+        probe_scans: vec!["frontal2".into()],
+        ..ProtocolParams::default()
+    };
+    let eval = evaluate(copy.path(), None, &params).unwrap();
+    assert_eq!(eval.report.failures.len(), 1);
+    let f = &eval.report.failures[0];
+    assert!(f.file.ends_with(Path::new("subj000_frontal2.wrl")));
+    assert!(f.reason.contains("ground-truth"), "{}", f.reason);
+    assert_eq!(eval.report.probes, SUBJECTS - 1);
+}
+
+#[test]
+fn evaluate_command_writes_the_report() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let out = tempfile::tempdir().unwrap();
+    let report = out.path().join("report.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(["evaluate", "--metric", "euclidean", "--dataset"])
+        .arg(&dir)
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in [
+        "subjects",
+        "probes",
+        "method",
+        "metric",
+        "rank1",
+        "rank5",
+        "cmc",
+        "by_probe_kind",
+        "failures",
+    ] {
+        assert!(v.get(key).is_some(), "report lacks {key}");
+    }
+    assert_eq!(v["metric"], "euclidean");
+    assert_eq!(v["method"], "eigenfaces");
+    assert_eq!(v["cmc"].as_array().unwrap().len(), SUBJECTS);
+    let stdout: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    assert_eq!(stdout, v);
+}
