@@ -152,6 +152,23 @@ pub enum Command {
     /// images, gallery = frontal1 (+ synthetic expressions), probes = frontal2, sonrisa, risa,
     /// gesto; prints the report JSON (rank-1, rank-5, CMC, per probe kind, failures).
     Evaluate(EvaluateArgs),
+    /// Gallery augmentation (paper section 3): for every neutral gallery scan, denoise →
+    /// landmarks → register → FEM → 18 synthetic expressions, written as OUT/<scan>/<name>.obj
+    /// (scan frame, mm) with `neutral.obj`; resumable, failures listed, not fatal.
+    Augment {
+        /// Folder of scans; the gallery scans are those whose name ends with --suffix.
+        #[arg(long)]
+        gallery: PathBuf,
+        /// Output folder (one sub-folder per gallery scan; `failures.json`).
+        #[arg(long)]
+        out: PathBuf,
+        /// `all` or a comma-separated list of preset names.
+        #[arg(long, default_value = "all")]
+        expressions: String,
+        /// File-name stem suffix of the neutral gallery scans.
+        #[arg(long, default_value = "_frontal1")]
+        suffix: String,
+    },
     /// Print timings as JSON.
     Bench {
         #[command(subcommand)]
@@ -229,6 +246,12 @@ pub struct EvaluateArgs {
     /// Write the feature vectors, labels and our ranks as JSON (for scripts/sklearn_crosscheck.py).
     #[arg(long)]
     pub features: Option<PathBuf>,
+    /// At most this many PCA dimensions before the LDA (default: the paper's M − c).
+    #[arg(long)]
+    pub pca_dims: Option<usize>,
+    /// Within-class scatter floor λ (× its mean eigenvalue); 0 = the paper's LDA.
+    #[arg(long, default_value_t = 0.0)]
+    pub sw_floor: f64,
 }
 
 /// What `facesynth bench` measures.
@@ -459,6 +482,12 @@ pub fn run(cli: Cli) -> Result<()> {
             name.as_deref(),
         )?),
         Some(Command::Evaluate(args)) => print_json(&evaluate(&args)?),
+        Some(Command::Augment {
+            gallery,
+            out,
+            expressions,
+            suffix,
+        }) => print_json(&augment(&gallery, &out, expressions, suffix)?),
         Some(Command::Bench {
             what: BenchWhat::Fem,
         }) => print_json(&fem::bench_fem()?),
@@ -640,6 +669,11 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         pose: args.pose,
         gallery_scans: list(&args.gallery_scans),
         probe_scans: list(&args.probe_scans),
+        fisher: crate::recognition::FisherParams {
+            max_pca_dims: args.pca_dims,
+            within_class_regularisation: args.sw_floor,
+            ..Default::default()
+        },
         ..ProtocolParams::default()
     };
     let eval = crate::recognition::evaluate(&args.dataset, args.augmented.as_deref(), &params)?;
@@ -651,6 +685,34 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         io::write_text_atomic(path, &serde_json::to_string(&eval.features_json())?)?;
     }
     Ok(value)
+}
+
+/// `facesynth augment`: the batch with a progress line per scan on stderr.
+pub fn augment(
+    gallery: &Path,
+    out: &Path,
+    expressions: String,
+    suffix: String,
+) -> Result<serde_json::Value> {
+    let params = crate::pipeline::AugmentParams {
+        gallery_suffix: suffix,
+        expressions,
+        ..Default::default()
+    };
+    let start = std::time::Instant::now();
+    let (done, failed) = crate::pipeline::augment(gallery, out, &params, &|k, n, line| {
+        eprintln!("augment [{k}/{n}] {line}");
+    })?;
+    let seconds = start.elapsed().as_secs_f64();
+    Ok(json!({
+        "gallery": gallery, "out": out,
+        "scans": done.len() + failed.len(),
+        "augmented": done.iter().filter(|a| !a.resumed).count(),
+        "resumed": done.iter().filter(|a| a.resumed).count(),
+        "failures": failed,
+        "expressions_per_scan": done.iter().map(|a| a.expressions).max().unwrap_or(0),
+        "seconds": seconds,
+    }))
 }
 
 fn print_json(value: &serde_json::Value) -> Result<()> {

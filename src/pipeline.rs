@@ -71,3 +71,306 @@ pub fn prepare_scan(
     let mesh = io::read_mesh(path)?;
     prepare_mesh(mesh, landmarks_file, generic).map_err(|e| e.in_file(path))
 }
+
+// ---------------------------------------------------------------------------------------------
+// Gallery augmentation (paper section 3: 18 synthetic expressions per neutral gallery scan)
+// ---------------------------------------------------------------------------------------------
+
+/// Settings of [`augment`].
+#[derive(Debug, Clone)]
+pub struct AugmentParams {
+    /// A gallery scan is a mesh file whose stem ends with this (default `_frontal1`, the
+    /// GavabDB neutral scan).
+    pub gallery_suffix: String,
+    /// `all` or a comma-separated list of preset names (default `all`: the 18 presets).
+    pub expressions: String,
+    /// Materials and layers of the FEM face (default: the paper's).
+    pub fem: crate::fem::FemParams,
+    /// Reach of the expression transfer onto the scan, mm (default 8: about three of the
+    /// generic face's quads; see [`transfer_expression`]).
+    pub transfer_radius_mm: f64,
+}
+
+impl Default for AugmentParams {
+    fn default() -> Self {
+        AugmentParams {
+            gallery_suffix: "_frontal1".into(),
+            expressions: "all".into(),
+            fem: crate::fem::FemParams::default(),
+            transfer_radius_mm: 8.0,
+        }
+    }
+}
+
+/// What [`augment`] did with one gallery scan.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct AugmentedScan {
+    pub scan: std::path::PathBuf,
+    /// `OUT/<stem>/`: one PLY per expression (the scan carrying it, scan frame, mm) and
+    /// `face/` with the FEM face's own surfaces (`neutral.obj` + one OBJ per expression).
+    pub dir: std::path::PathBuf,
+    /// Finished by an earlier run (its `done.json` was there): skipped.
+    pub resumed: bool,
+    pub expressions: usize,
+    pub landmark_warnings: usize,
+    pub matched_fraction: f64,
+    pub millis: f64,
+}
+
+/// A gallery scan that a step failed on, and why (the batch goes on).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct AugmentFailure {
+    pub scan: std::path::PathBuf,
+    pub reason: String,
+}
+
+/// Carries the FEM face's expression onto the scan itself: every scan vertex moves by the
+/// displacement of the registered face near it (inverse-square-distance weights over the face
+/// vertices within `radius_mm`), faded out linearly between `radius_mm / 2` and `radius_mm`
+/// from the face (hair, ears and neck stay put).
+///
+/// Why: recognition trains on range images, and a synthetic sample made from the generic
+/// face differs from the person's real scans in everything the generic face lacks (eyeballs,
+/// skin detail, the hairline, scan holes) — LDA then learns "generic vs scan" instead of
+/// "expression". Moving the scan itself keeps all of that and changes only the expression.
+pub fn transfer_expression(
+    scan: &Mesh,
+    face_rest: &Mesh,
+    displacement_mm: &[glam::DVec3],
+    radius_mm: f64,
+) -> Mesh {
+    use glam::DVec3;
+    let cell = radius_mm.max(0.5);
+    let key = |p: DVec3| {
+        (
+            (p.x / cell).floor() as i64,
+            (p.y / cell).floor() as i64,
+            (p.z / cell).floor() as i64,
+        )
+    };
+    let mut grid: std::collections::HashMap<(i64, i64, i64), Vec<u32>> = Default::default();
+    for (i, &p) in face_rest.positions_mm.iter().enumerate() {
+        grid.entry(key(p)).or_default().push(i as u32);
+    }
+    let positions = scan
+        .positions_mm
+        .iter()
+        .map(|&p| {
+            let (cx, cy, cz) = key(p);
+            let (mut sum, mut weight, mut nearest) = (DVec3::ZERO, 0.0, f64::INFINITY);
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(ids) = grid.get(&(cx + dx, cy + dy, cz + dz)) else {
+                            continue;
+                        };
+                        for &i in ids {
+                            let d = face_rest.positions_mm[i as usize].distance(p);
+                            if d < radius_mm {
+                                let w = 1.0 / (d * d + 0.25);
+                                sum += displacement_mm[i as usize] * w;
+                                weight += w;
+                                nearest = nearest.min(d);
+                            }
+                        }
+                    }
+                }
+            }
+            if weight == 0.0 {
+                return p;
+            }
+            let fade = ((radius_mm - nearest) / (radius_mm * 0.5)).clamp(0.0, 1.0);
+            p + sum / weight * fade
+        })
+        .collect();
+    let mut out = Mesh::new(positions, scan.faces.clone());
+    out.update_normals();
+    out
+}
+
+/// Thickness factors tried, in order, when the layers invert under a registered face (a crease
+/// or fold of the scan that even local thinning cannot follow).
+const THICKNESS_FALLBACK: [f64; 3] = [1.0, 0.6, 0.35];
+
+/// The FEM model of a registered face, with the layers made thinner as a last resort when they
+/// invert; returns the factor used (1 = the requested thicknesses).
+pub fn fem_model(
+    face: &GenericFace,
+    params: &crate::fem::FemParams,
+) -> Result<(crate::fem::FaceModel, f64)> {
+    let mut last = None;
+    for factor in THICKNESS_FALLBACK {
+        let mut p = *params;
+        p.layers.skin_thickness_mm *= factor;
+        p.layers.fat_thickness_mm *= factor;
+        match crate::fem::FaceModel::from_generic(face, &p) {
+            Ok(model) => return Ok((model, factor)),
+            Err(e @ Error::Fem(crate::FemError::InvertedElement { .. })) => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.expect("at least one factor was tried"))
+}
+
+/// The marker a finished subject's folder gets last: a folder without it is unfinished and is
+/// redone (its files may be from a killed run).
+pub const DONE_MARKER: &str = "done.json";
+
+/// The gallery scans of `dir` (sorted).
+pub fn gallery_scans(dir: &Path, suffix: &str) -> Result<Vec<std::path::PathBuf>> {
+    let mut out: Vec<_> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && p.file_stem()
+                    .is_some_and(|s| s.to_string_lossy().ends_with(suffix))
+                && io::MeshFormat::from_path(p).is_ok()
+        })
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
+/// One gallery scan: denoise → landmarks → register → FEM → expressions, written into
+/// `out_dir` atomically, `done.json` last.
+pub fn augment_scan(
+    scan: &Path,
+    out_dir: &Path,
+    generic: &GenericFace,
+    params: &AugmentParams,
+) -> Result<AugmentedScan> {
+    let start = std::time::Instant::now();
+    let presets = crate::fem::expressions::ExpressionSet::builtin();
+    let chosen = presets.select(&params.expressions)?;
+    let prepared = prepare_scan(scan, None, generic)?;
+    let face = GenericFace {
+        mesh: prepared.registration.mesh.clone(),
+        feature_vertices: generic.feature_vertices,
+    };
+    let in_file = |e: Error| e.in_file(scan);
+    let (mut model, thickness_factor) = fem_model(&face, &params.fem).map_err(in_file)?;
+    model.factor().map_err(in_file)?;
+    model
+        .set_muscles(&crate::fem::muscles::MuscleSet::builtin())
+        .map_err(in_file)?;
+    model.compute_basis().map_err(in_file)?;
+    // The gallery samples (the scan with each expression) go in `out_dir`, the FEM face's own
+    // surfaces in `out_dir/face/` (for looking at; recognition reads only the top folder).
+    let face_dir = out_dir.join("face");
+    std::fs::create_dir_all(&face_dir).map_err(|e| Error::io(&face_dir, e))?;
+    io::write_mesh(&face_dir.join("neutral.obj"), &face.mesh)?;
+    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let mut figures = serde_json::Map::new();
+    let mut u = Vec::new();
+    for e in &chosen {
+        let a = e.activations_for(&names)?;
+        model.combine_surface(&a, &mut u)?;
+        let mesh = model.deformed_surface(&a)?;
+        io::write_mesh(&face_dir.join(format!("{}.obj", e.name)), &mesh)?;
+        let on_scan = transfer_expression(
+            &prepared.denoised,
+            &face.mesh,
+            &u,
+            params.transfer_radius_mm,
+        );
+        io::write_mesh(&out_dir.join(format!("{}.ply", e.name)), &on_scan)?;
+        let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
+        figures.insert(
+            e.name.clone(),
+            serde_json::json!({ "max_displacement_mm": max }),
+        );
+    }
+    let result = AugmentedScan {
+        scan: scan.to_path_buf(),
+        dir: out_dir.to_path_buf(),
+        resumed: false,
+        expressions: chosen.len(),
+        landmark_warnings: prepared.detection.as_ref().map_or(0, |d| d.warnings.len()),
+        matched_fraction: prepared.registration.matched_fraction(),
+        millis: start.elapsed().as_secs_f64() * 1e3,
+    };
+    let mut done = serde_json::to_value(&result).unwrap_or_default();
+    done["layer_thickness_factor"] = serde_json::json!(thickness_factor);
+    done["expressions_mm"] = serde_json::Value::Object(figures);
+    done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
+    io::write_text_atomic(
+        &out_dir.join(DONE_MARKER),
+        &(serde_json::to_string_pretty(&done).unwrap_or_default() + "\n"),
+    )?;
+    Ok(result)
+}
+
+/// Augments every gallery scan of `gallery` into `out/<stem>/`, in parallel. Resumable: a
+/// subject whose folder has [`DONE_MARKER`] is skipped. A failed scan goes to the failure
+/// list; the batch goes on. `progress` is called after each scan (done count, total, line).
+pub fn augment(
+    gallery: &Path,
+    out: &Path,
+    params: &AugmentParams,
+    progress: &(dyn Fn(usize, usize, &str) + Sync),
+) -> Result<(Vec<AugmentedScan>, Vec<AugmentFailure>)> {
+    use rayon::prelude::*;
+    let scans = gallery_scans(gallery, &params.gallery_suffix)?;
+    if scans.is_empty() {
+        return Err(Error::InvalidData {
+            path: gallery.to_path_buf(),
+            message: format!(
+                "no gallery scans (mesh files whose name ends with `{}`)",
+                params.gallery_suffix
+            ),
+        });
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let generic = crate::generic_face::build();
+    let total = scans.len();
+    let counter = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<std::result::Result<AugmentedScan, AugmentFailure>> = scans
+        .par_iter()
+        .map(|scan| {
+            let stem = scan
+                .file_stem()
+                .map_or_else(|| "scan".into(), |s| s.to_string_lossy().into_owned());
+            let dir = out.join(&stem);
+            let marker = dir.join(DONE_MARKER);
+            let r = if marker.is_file() {
+                Ok(AugmentedScan {
+                    scan: scan.clone(),
+                    dir,
+                    resumed: true,
+                    expressions: 0,
+                    landmark_warnings: 0,
+                    matched_fraction: f64::NAN,
+                    millis: 0.0,
+                })
+            } else {
+                augment_scan(scan, &dir, &generic, params).map_err(|e| AugmentFailure {
+                    scan: scan.clone(),
+                    reason: e.to_string(),
+                })
+            };
+            let k = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            let line = match &r {
+                Ok(a) if a.resumed => format!("{stem}: already done"),
+                Ok(a) => format!(
+                    "{stem}: {} expressions in {:.0} ms",
+                    a.expressions, a.millis
+                ),
+                Err(f) => format!("{stem}: FAILED: {}", f.reason),
+            };
+            progress(k, total, &line);
+            r
+        })
+        .collect();
+    let mut done = Vec::new();
+    let mut failed = Vec::new();
+    for r in results {
+        match r {
+            Ok(a) => done.push(a),
+            Err(f) => failed.push(f),
+        }
+    }
+    let failures = serde_json::to_string_pretty(&failed).unwrap_or_default() + "\n";
+    io::write_text_atomic(&out.join("failures.json"), &failures)?;
+    Ok((done, failed))
+}

@@ -78,12 +78,21 @@ pub struct FisherParams {
     /// PCA eigenvalues below this fraction of the largest count as zero (rank cut). Default
     /// 1e-10.
     pub rank_tolerance: f64,
+    /// At most this many PCA dimensions before the LDA (default `None`: the paper's M − c).
+    pub max_pca_dims: Option<usize>,
+    /// Adds `λ · mean eigenvalue of S_w` to the diagonal of S_w (default 0: the paper's LDA).
+    /// With one real scan per person and synthetic expressions of it, S_w holds only the
+    /// expressions; directions where scans of one person differ by noise, pose or grid look
+    /// noise-free to the LDA, and it amplifies them. A floor gives them their real variance.
+    pub within_class_regularisation: f64,
 }
 
 impl Default for FisherParams {
     fn default() -> Self {
         FisherParams {
             rank_tolerance: 1e-10,
+            max_pca_dims: None,
+            within_class_regularisation: 0.0,
         }
     }
 }
@@ -156,7 +165,8 @@ impl FisherModel {
         let want = match method {
             Method::Fisherfaces => m - c,
             Method::Eigenfaces => m - 1,
-        };
+        }
+        .min(params.max_pca_dims.unwrap_or(usize::MAX).max(1));
         // PCA through the Gram matrix.
         let gram = a.transpose() * &a;
         let eig = gram.symmetric_eigen();
@@ -214,7 +224,13 @@ impl FisherModel {
             let mut col = within.column_mut(s);
             col -= class_mean.column(cl);
         }
-        let sw = &within * within.transpose();
+        let mut sw = &within * within.transpose();
+        if params.within_class_regularisation > 0.0 {
+            let floor = params.within_class_regularisation * sw.trace() / k as f64;
+            for i in 0..k {
+                sw[(i, i)] += floor;
+            }
+        }
         let chol = sw.clone().cholesky().ok_or_else(|| {
             Error::algorithm(
                 "fisherfaces",

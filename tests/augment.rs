@@ -1,0 +1,135 @@
+//! Gallery augmentation (paper section 3) on generated scans: outputs, resume after a killed
+//! run, failure list; and the expression transfer onto the scan on an analytic case.
+
+mod common;
+
+use facesynth::Mesh;
+use facesynth::pipeline::{self, AugmentParams, DONE_MARKER};
+use glam::DVec3;
+
+/// A regular grid of quads in the plane z = 0, `n × n` vertices, `step` mm apart.
+fn plane(n: usize, step: f64) -> Mesh {
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            positions.push(DVec3::new(i as f64 * step, j as f64 * step, 0.0));
+        }
+    }
+    for j in 0..n as u32 - 1 {
+        for i in 0..n as u32 - 1 {
+            let v = j * n as u32 + i;
+            faces.push([v, v + 1, v + 1 + n as u32, v + n as u32]);
+        }
+    }
+    Mesh::from_faces(positions, faces)
+}
+
+#[test]
+fn transfer_moves_the_scan_with_the_face_and_leaves_the_far_part_alone() {
+    let scan = plane(41, 1.0); // 40 × 40 mm
+    // The "face" covers the left half of the scan and moves 2 mm up everywhere.
+    let face = Mesh::from_faces(
+        plane(11, 2.0)
+            .positions_mm
+            .iter()
+            .map(|p| *p + DVec3::new(0.0, 10.0, 0.0))
+            .collect(),
+        plane(11, 2.0)
+            .faces
+            .iter()
+            .map(|f| f.to_vec())
+            .collect::<Vec<_>>(),
+    );
+    let u = vec![DVec3::new(0.0, 2.0, 0.0); face.vertex_count()];
+    let out = pipeline::transfer_expression(&scan, &face, &u, 8.0);
+    for (p, q) in scan.positions_mm.iter().zip(&out.positions_mm) {
+        let d = *q - *p;
+        let inside = p.x <= 20.0 && (10.0..=30.0).contains(&p.y);
+        if inside {
+            assert!((d - DVec3::new(0.0, 2.0, 0.0)).length() < 1e-9, "{p}: {d}");
+        }
+        let far = p.x > 28.0 || p.y < 2.0 || p.y > 38.0;
+        if far {
+            assert!(d.length() < 1e-12, "{p} moved {d}");
+        }
+        assert!(d.x.abs() < 1e-12 && d.z.abs() < 1e-12 && d.y <= 2.0 + 1e-12);
+    }
+}
+
+#[test]
+fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
+    let data = common::synth_dataset(2, 11, false);
+    let out = tempfile::tempdir().unwrap();
+    let params = AugmentParams::default();
+    let quiet = |_: usize, _: usize, _: &str| {};
+    let (done, failed) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    assert_eq!(done.len() + failed.len(), 2);
+    assert!(failed.is_empty(), "{failed:?}");
+    let dir = out.path().join("subj000_frontal1");
+    let plys = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "ply")
+        })
+        .count();
+    assert_eq!(plys, 18);
+    assert!(dir.join("face/neutral.obj").is_file());
+    assert!(dir.join(DONE_MARKER).is_file());
+    // The synthetic smile is the scan itself (same vertex count), moved near the mouth only.
+    let scan = facesynth::io::read_mesh(&data.join("subj000_frontal1.wrl")).unwrap();
+    let smile = facesynth::io::read_mesh(&dir.join("happiness.ply")).unwrap();
+    assert_eq!(smile.vertex_count(), scan.vertex_count());
+    assert!(
+        std::fs::read_to_string(out.path().join("failures.json"))
+            .unwrap()
+            .contains("[]")
+    );
+
+    // A killed run: one subject lost its marker and has a truncated file. Re-running redoes
+    // exactly that subject; the finished one is skipped.
+    std::fs::remove_file(dir.join(DONE_MARKER)).unwrap();
+    std::fs::write(dir.join("happiness.ply"), b"ply\nformat binary_little").unwrap();
+    let (again, failed) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    assert!(failed.is_empty());
+    let redone: Vec<_> = again.iter().filter(|a| !a.resumed).collect();
+    assert_eq!(redone.len(), 1);
+    assert!(redone[0].scan.ends_with("subj000_frontal1.wrl"));
+    let smile = facesynth::io::read_mesh(&dir.join("happiness.ply")).unwrap();
+    assert_eq!(smile.vertex_count(), scan.vertex_count());
+}
+
+#[test]
+fn augment_lists_a_broken_scan_and_goes_on() {
+    let data = common::synth_dataset(2, 11, false);
+    let gallery = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        data.join("subj000_frontal1.wrl"),
+        gallery.path().join("subj000_frontal1.wrl"),
+    )
+    .unwrap();
+    std::fs::write(
+        gallery.path().join("broken_frontal1.wrl"),
+        "#VRML V1.0 ascii\n[",
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let (done, failed) = pipeline::augment(
+        gallery.path(),
+        out.path(),
+        &AugmentParams::default(),
+        &|_, _, _| {},
+    )
+    .unwrap();
+    assert_eq!(done.len(), 1);
+    assert_eq!(failed.len(), 1);
+    assert!(
+        failed[0].reason.contains("broken_frontal1.wrl"),
+        "{}",
+        failed[0].reason
+    );
+}
