@@ -249,8 +249,8 @@ pub struct EvaluateArgs {
     /// At most this many PCA dimensions before the LDA (default: the paper's M − c).
     #[arg(long)]
     pub pca_dims: Option<usize>,
-    /// Within-class scatter floor λ (× its mean eigenvalue); 0 = the paper's LDA.
-    #[arg(long, default_value_t = 0.0)]
+    /// Within-class scatter floor λ (× its mean eigenvalue); 0 = the paper's plain LDA.
+    #[arg(long, default_value_t = 3.0)]
     pub sw_floor: f64,
 }
 

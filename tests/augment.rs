@@ -133,3 +133,17 @@ fn augment_lists_a_broken_scan_and_goes_on() {
         failed[0].reason
     );
 }
+
+#[test]
+fn augmented_gallery_feeds_the_recognition_protocol() {
+    let data = common::synth_dataset(2, 11, false);
+    let out = tempfile::tempdir().unwrap();
+    let (done, _) =
+        pipeline::augment(&data, out.path(), &AugmentParams::default(), &|_, _, _| {}).unwrap();
+    let params = facesynth::recognition::ProtocolParams::default();
+    let eval = facesynth::recognition::evaluate(&data, Some(out.path()), &params).unwrap();
+    let r = &eval.report;
+    assert_eq!(r.synthetic_gallery_samples, 18 * done.len());
+    assert_eq!(r.method, facesynth::recognition::Method::Fisherfaces);
+    assert!(r.failures.is_empty(), "{:?}", r.failures);
+}

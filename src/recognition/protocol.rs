@@ -83,7 +83,13 @@ impl Default for ProtocolParams {
     fn default() -> Self {
         ProtocolParams {
             range: RangeImageParams::default(),
-            fisher: FisherParams::default(),
+            // A within-class floor of 3× the mean S_w eigenvalue: chosen on seed 7 (61
+            // synthetic subjects), confirmed on seed 8 (augmented rank-1 78.7 % vs 43.9 % with
+            // the paper's plain LDA); see `FisherParams::within_class_regularisation`.
+            fisher: FisherParams {
+                within_class_regularisation: 3.0,
+                ..FisherParams::default()
+            },
             metric: Metric::Cosine,
             gallery_scans: vec!["frontal1".into()],
             probe_scans: ["frontal2", "sonrisa", "risa", "gesto"]
