@@ -9,6 +9,14 @@ use crate::registration::{self, RegistrationParams, RegistrationResult};
 use crate::{Error, Landmarks, Mesh, Result, io};
 use std::path::Path;
 
+/// Feature points the detector finds as borders of the face region rather than as anatomical
+/// points (see [`prepare_mesh`]).
+pub const BORDER_POINTS: [crate::FeaturePoint; 3] = [
+    crate::FeaturePoint::CheekLeft,
+    crate::FeaturePoint::CheekRight,
+    crate::FeaturePoint::Forehead,
+];
+
 /// A scan taken through the pre-processing steps.
 #[derive(Debug, Clone)]
 pub struct PreparedScan {
@@ -52,8 +60,20 @@ pub fn prepare_mesh(
 ) -> Result<PreparedScan> {
     denoise::denoise(&mut scan, &DenoiseParams::default())?;
     let (points, detection) = scan_landmarks(&scan, landmarks_file)?;
-    let registration =
-        registration::register(generic, &scan, &points, &RegistrationParams::default())?;
+    let params = RegistrationParams::default();
+    let registration = if detection.is_some() {
+        // Detected cheek and forehead points are the face region's borders (paper steps 7–8:
+        // where the cheek turns away, the hairline), not the generic face's fixed cheek and
+        // forehead vertices; matching them stretches the generic face past the scan. The
+        // other ten are anatomical points on both, so those drive the registration.
+        let inner: Vec<_> = points
+            .iter()
+            .filter(|(p, _)| !BORDER_POINTS.contains(p))
+            .collect();
+        registration::register_points(generic, &scan, &inner, &params)?
+    } else {
+        registration::register(generic, &scan, &points, &params)?
+    };
     Ok(PreparedScan {
         denoised: scan,
         landmarks: points,
@@ -188,6 +208,51 @@ pub fn transfer_expression(
     out
 }
 
+/// Smooths away the folds a registration can leave in the surface (a quad turned over where
+/// the projection jumps across a crease or a hole's rim): the vertices of every quad whose
+/// corner normals disagree with the quad's smoothed normal by more than 90° (or whose corner
+/// turns the wrong way) move to the mean of their neighbours, a few rounds, until none is
+/// left. Returns the surface and how many vertices moved. Folded quads extrude into inverted
+/// hexahedra, so the FEM needs this; elsewhere the surface is untouched.
+pub fn unfold_surface(surface: &Mesh) -> (Mesh, usize) {
+    const ROUNDS: usize = 30;
+    let mut mesh = surface.clone();
+    let topology = crate::mesh::Topology::new(&mesh);
+    let mut moved = vec![false; mesh.vertex_count()];
+    for _ in 0..ROUNDS {
+        mesh.update_normals();
+        let mut bad = Vec::new();
+        for poly in mesh.faces.iter() {
+            let n = poly.len();
+            let avg: glam::DVec3 = poly.iter().map(|&v| mesh.normals[v as usize]).sum();
+            let folded = (0..n).any(|k| {
+                let p = |i: usize| mesh.positions_mm[poly[(k + i) % n] as usize];
+                let corner = (p(1) - p(0)).cross(p(n - 1) - p(0));
+                corner.dot(avg) <= 0.0
+            });
+            if folded {
+                bad.extend(poly.iter().map(|&v| v as usize));
+            }
+        }
+        if bad.is_empty() {
+            break;
+        }
+        bad.sort_unstable();
+        bad.dedup();
+        let old = mesh.positions_mm.clone();
+        for &v in &bad {
+            let ring = topology.neighbours(v);
+            if !ring.is_empty() {
+                let sum: glam::DVec3 = ring.iter().map(|&u| old[u as usize]).sum();
+                mesh.positions_mm[v] = sum / ring.len() as f64;
+                moved[v] = true;
+            }
+        }
+    }
+    mesh.update_normals();
+    (mesh, moved.iter().filter(|&&m| m).count())
+}
+
 /// Thickness factors tried, in order, when the layers invert under a registered face (a crease
 /// or fold of the scan that even local thinning cannot follow).
 const THICKNESS_FALLBACK: [f64; 3] = [1.0, 0.6, 0.35];
@@ -244,8 +309,9 @@ pub fn augment_scan(
     let presets = crate::fem::expressions::ExpressionSet::builtin();
     let chosen = presets.select(&params.expressions)?;
     let prepared = prepare_scan(scan, None, generic)?;
+    let (surface, unfolded) = unfold_surface(&prepared.registration.mesh);
     let face = GenericFace {
-        mesh: prepared.registration.mesh.clone(),
+        mesh: surface,
         feature_vertices: generic.feature_vertices,
     };
     let in_file = |e: Error| e.in_file(scan);
@@ -292,6 +358,7 @@ pub fn augment_scan(
     };
     let mut done = serde_json::to_value(&result).unwrap_or_default();
     done["layer_thickness_factor"] = serde_json::json!(thickness_factor);
+    done["unfolded_vertices"] = serde_json::json!(unfolded);
     done["expressions_mm"] = serde_json::Value::Object(figures);
     done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
     io::write_text_atomic(

@@ -147,3 +147,29 @@ fn augmented_gallery_feeds_the_recognition_protocol() {
     assert_eq!(r.method, facesynth::recognition::Method::Fisherfaces);
     assert!(r.failures.is_empty(), "{:?}", r.failures);
 }
+
+#[test]
+fn unfold_repairs_a_turned_over_quad_and_leaves_a_clean_surface_alone() {
+    let clean = plane(9, 2.0);
+    let (same, moved) = pipeline::unfold_surface(&clean);
+    assert_eq!(moved, 0);
+    assert_eq!(same.positions_mm, clean.positions_mm);
+    // Push one interior vertex across its neighbours: its quads turn over.
+    let mut folded = clean.clone();
+    let v = 4 * 9 + 4;
+    folded.positions_mm[v] += DVec3::new(5.0, 5.0, 0.0);
+    let (fixed, moved) = pipeline::unfold_surface(&folded);
+    assert!(moved >= 1);
+    // Every quad turns the same way again (corner normals along +z).
+    for f in fixed.faces.iter() {
+        for k in 0..4 {
+            let p = |i: usize| fixed.positions_mm[f[(k + i) % 4] as usize];
+            assert!(
+                (p(1) - p(0)).cross(p(3) - p(0)).z > 0.0,
+                "face {f:?} still folded"
+            );
+        }
+    }
+    // Far from the fold nothing moved.
+    assert_eq!(fixed.positions_mm[0], clean.positions_mm[0]);
+}

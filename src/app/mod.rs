@@ -26,6 +26,20 @@ use worker::Worker;
 /// screenshot is written). An error in screenshot mode (file unreadable, no GPU) is returned.
 pub fn run(args: ViewArgs) -> Result<()> {
     let scripted = args.screenshot.is_some() || args.measure_slider.is_some();
+    if scripted {
+        // eframe may create the storage folder again while shutting down (empty): sweep the
+        // empty ones earlier scripted runs left behind.
+        if let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) {
+            for e in entries.flatten() {
+                if e.file_name()
+                    .to_string_lossy()
+                    .starts_with("facesynth-scripted-")
+                {
+                    let _ = std::fs::remove_dir(e.path());
+                }
+            }
+        }
+    }
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("facesynth")
