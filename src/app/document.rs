@@ -408,10 +408,18 @@ impl Document {
                 else {
                     return self.fail("registration needs a scan and its 13 feature points");
                 };
+                // Detected cheek/forehead borders are left out, as in the pipeline, unless the
+                // user has placed them (then they are meant as the generic face's points).
+                let border_detected = self.detection.as_ref().is_some_and(|d| {
+                    crate::pipeline::BORDER_POINTS
+                        .iter()
+                        .all(|&p| d.report.landmarks.get(p) == landmarks.get(p))
+                });
                 let job = Job::Register {
                     generic: self.generic.clone(),
                     scan: mesh.clone(),
                     landmarks: Box::new(*landmarks),
+                    use_border_points: !border_detected,
                 };
                 self.pending.push("registering");
                 vec![job]

@@ -33,6 +33,8 @@ pub enum Job {
         generic: Arc<GenericFace>,
         scan: Arc<Mesh>,
         landmarks: Box<Landmarks>,
+        /// Register on the cheek and forehead points too (see `pipeline::BORDER_POINTS`).
+        use_border_points: bool,
     },
     /// Fit the 18 activations to an expression scan with the current FEM model.
     FitExpression {
@@ -189,6 +191,7 @@ impl WorkerState {
                 && m.params.layers.fat_thickness_mm == params.layers.fat_thickness_mm
         });
         let what;
+        let mut note = String::new();
         if reusable {
             let (_, model, old_muscles) = self.fem.as_mut().expect("checked");
             let materials_changed =
@@ -208,7 +211,17 @@ impl WorkerState {
         } else {
             // Drop the old model first so a failed build does not leave a stale one behind.
             self.fem = None;
-            let mut model = FaceModel::new(surface, feature_vertices, &params).map_err(e)?;
+            // As in the batch: folds the registration left are smoothed away, and the layers
+            // thinned as a last resort (both reported in `last_update`).
+            let (surface, unfolded) = crate::pipeline::unfold_surface(surface);
+            let face = GenericFace {
+                mesh: surface,
+                feature_vertices,
+            };
+            let (mut model, factor) = crate::pipeline::fem_model(&face, &params).map_err(e)?;
+            if unfolded > 0 || factor < 1.0 {
+                note = format!("; {unfolded} folded vertices smoothed, layers × {factor}");
+            }
             model.factor().map_err(e)?;
             model.set_muscles(&muscles).map_err(e)?;
             model.compute_basis().map_err(e)?;
@@ -230,7 +243,7 @@ impl WorkerState {
             dofs: model.dofs(),
             quality: model.quality,
             timings: model.timings,
-            last_update: what.into(),
+            last_update: format!("{what}{note}"),
             millis: start.elapsed().as_secs_f64() * 1e3,
             surface_id,
         })
@@ -251,7 +264,10 @@ pub fn run_job(job: Job) -> JobResult {
             generic,
             scan,
             landmarks,
-        } => JobResult::Registered(register(&generic, &scan, *landmarks).map(Box::new)),
+            use_border_points,
+        } => JobResult::Registered(
+            register(&generic, &scan, *landmarks, use_border_points).map(Box::new),
+        ),
     }
 }
 
@@ -315,9 +331,14 @@ fn register(
     generic: &GenericFace,
     scan: &Mesh,
     landmarks: Landmarks,
+    use_border_points: bool,
 ) -> Result<RegistrationState, String> {
     let params = RegistrationParams::default();
-    let result = crate::registration::register(generic, scan, &landmarks, &params)
+    let points: Vec<_> = landmarks
+        .iter()
+        .filter(|(p, _)| use_border_points || !crate::pipeline::BORDER_POINTS.contains(p))
+        .collect();
+    let result = crate::registration::register_points(generic, scan, &points, &params)
         .map_err(|e| e.to_string())?;
     // Per-vertex distance for the heat map; filled (unmatched) vertices have no measured value.
     let index = SurfaceIndex::new(scan, params.grid_cell_mm);
