@@ -240,7 +240,10 @@ impl EditorApp {
                 args.muscles,
             );
         }
-        view.overlay = args.show.unwrap_or(if args.register {
+        let fem = args.fem || args.expression.is_some() || args.fit.is_some();
+        view.overlay = args.show.unwrap_or(if fem {
+            Overlay::Plain
+        } else if args.register {
             Overlay::Registration
         } else if args.detect {
             Overlay::ShapeIndex
