@@ -435,3 +435,60 @@ fn debug_one() {
         println!("{p} {x:.1}");
     }
 }
+
+/// The same table with the points the detector finds (the pipeline: denoise → detect →
+/// register on the ten anatomical points), scored against the clean twins. On demand:
+/// `cargo test --release --test registration -- --ignored --nocapture detected_landmarks`.
+#[test]
+#[ignore]
+fn evaluation_table_with_detected_landmarks() {
+    let subjects: usize = std::env::var("REG_SUBJECTS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    let noisy = common::synth_dataset(subjects, 2024, false);
+    let clean = common::synth_dataset(subjects, 2024, true);
+    let generic = generic();
+    let params = RegistrationParams::default();
+    println!("{HEADER}");
+    for (scans, label) in [
+        (&["frontal1", "frontal2"][..], "neutral"),
+        (&["sonrisa", "risa", "gesto"][..], "expressions"),
+    ] {
+        let mut evals = Vec::new();
+        let mut failed = 0;
+        for name in names(subjects, scans) {
+            let reference = io::read_mesh(&clean.join(format!("{name}.wrl"))).unwrap();
+            let mut scan = io::read_mesh(&noisy.join(format!("{name}.wrl"))).unwrap();
+            facesynth::denoise::denoise(&mut scan, &Default::default()).unwrap();
+            let truth = registration::truth_points(&clean.join(format!("{name}.json")), &reference)
+                .unwrap();
+            let Ok(found) = facesynth::landmarks::detect(&scan, &Default::default()) else {
+                failed += 1;
+                continue;
+            };
+            let points: Vec<(FeaturePoint, DVec3)> = found
+                .landmarks
+                .iter()
+                .filter(|(p, _)| !facesynth::pipeline::BORDER_POINTS.contains(p))
+                .collect();
+            match registration::evaluate(
+                &generic,
+                &scan,
+                &reference,
+                &points,
+                &truth.landmarks,
+                &params,
+            ) {
+                Ok(e) => evals.push(e),
+                Err(_) => failed += 1,
+            }
+        }
+        let refs: Vec<_> = evals.iter().collect();
+        println!(
+            "{}",
+            summary(&format!("{label}, noisy→clean, detected (10 pts)"), &refs)
+        );
+        println!("<!-- {failed} scans without a registration -->");
+    }
+}
