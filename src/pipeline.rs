@@ -17,6 +17,21 @@ pub const BORDER_POINTS: [crate::FeaturePoint; 3] = [
     crate::FeaturePoint::Forehead,
 ];
 
+/// The points the registration is driven by. Detected cheek and forehead points are the face
+/// region's borders (paper steps 7–8: where the cheek turns away, the hairline), not the
+/// generic face's fixed cheek and forehead vertices; matching them stretches the generic face
+/// past the scan, so with `detected` only the ten anatomical points are used. Points given by
+/// the user (a file, or placed in the editor) are all used.
+pub fn registration_points(
+    landmarks: &Landmarks,
+    detected: bool,
+) -> Vec<(crate::FeaturePoint, glam::DVec3)> {
+    landmarks
+        .iter()
+        .filter(|(p, _)| !detected || !BORDER_POINTS.contains(p))
+        .collect()
+}
+
 /// A scan taken through the pre-processing steps.
 #[derive(Debug, Clone)]
 pub struct PreparedScan {
@@ -60,20 +75,12 @@ pub fn prepare_mesh(
 ) -> Result<PreparedScan> {
     denoise::denoise(&mut scan, &DenoiseParams::default())?;
     let (points, detection) = scan_landmarks(&scan, landmarks_file)?;
-    let params = RegistrationParams::default();
-    let registration = if detection.is_some() {
-        // Detected cheek and forehead points are the face region's borders (paper steps 7–8:
-        // where the cheek turns away, the hairline), not the generic face's fixed cheek and
-        // forehead vertices; matching them stretches the generic face past the scan. The
-        // other ten are anatomical points on both, so those drive the registration.
-        let inner: Vec<_> = points
-            .iter()
-            .filter(|(p, _)| !BORDER_POINTS.contains(p))
-            .collect();
-        registration::register_points(generic, &scan, &inner, &params)?
-    } else {
-        registration::register(generic, &scan, &points, &params)?
-    };
+    let registration = registration::register_points(
+        generic,
+        &scan,
+        &registration_points(&points, detection.is_some()),
+        &RegistrationParams::default(),
+    )?;
     Ok(PreparedScan {
         denoised: scan,
         landmarks: points,
@@ -332,7 +339,7 @@ pub fn augment_scan(
     for e in &chosen {
         let a = e.activations_for(&names)?;
         model.combine_surface(&a, &mut u)?;
-        let mesh = model.deformed_surface(&a)?;
+        let mesh = model.surface.displaced(&u);
         io::write_mesh(&face_dir.join(format!("{}.obj", e.name)), &mesh)?;
         let on_scan = transfer_expression(
             &prepared.denoised,

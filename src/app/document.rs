@@ -17,7 +17,7 @@ use crate::registration::RegistrationResult;
 use crate::{Mesh, io};
 use glam::DVec3;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// A loaded input scan.
@@ -145,15 +145,8 @@ impl FemState {
 
     /// The skin surface deformed by `activations` (normals recomputed).
     pub fn deformed_surface(&self, activations: &BTreeMap<String, f64>) -> Mesh {
-        let u = self.displacement(activations);
-        let positions = self
-            .surface
-            .positions_mm
-            .iter()
-            .zip(&u)
-            .map(|(p, d)| *p + *d)
-            .collect();
-        Mesh::new(positions, self.surface.faces.clone())
+        // The skin is the first layer of volume nodes, so the surface takes their displacement.
+        self.surface.displaced(&self.displacement(activations))
     }
 }
 
@@ -385,12 +378,12 @@ impl Document {
                 self.version += 1;
                 Vec::new()
             }
-            Command::LoadLandmarks(path) => match read_landmarks(&path) {
+            Command::LoadLandmarks(path) => match crate::pipeline::read_landmarks(&path) {
                 Ok(l) => {
                     self.status = Some(format!("loaded {}", path.display()));
                     self.apply(Command::SetLandmarks(Box::new(l)))
                 }
-                Err(e) => self.fail(e),
+                Err(e) => self.fail(e.to_string()),
             },
             Command::SaveLandmarks(path) => {
                 let Some(l) = &self.edits.landmarks else {
@@ -419,7 +412,7 @@ impl Document {
                     generic: self.generic.clone(),
                     scan: mesh.clone(),
                     landmarks: Box::new(*landmarks),
-                    use_border_points: !border_detected,
+                    borders_detected: border_detected,
                 };
                 self.pending.push("registering");
                 vec![job]
@@ -747,11 +740,4 @@ impl Document {
             Vec::new()
         }
     }
-}
-
-/// Reads a landmark file (JSON: name → [x, y, z] mm, all 13 names).
-pub fn read_landmarks(path: &Path) -> Result<Landmarks, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: not a landmark file: {e}", path.display()))
 }

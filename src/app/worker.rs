@@ -33,8 +33,9 @@ pub enum Job {
         generic: Arc<GenericFace>,
         scan: Arc<Mesh>,
         landmarks: Box<Landmarks>,
-        /// Register on the cheek and forehead points too (see `pipeline::BORDER_POINTS`).
-        use_border_points: bool,
+        /// The cheek and forehead points are the detector's (see
+        /// `pipeline::registration_points`).
+        borders_detected: bool,
     },
     /// Fit the 18 activations to an expression scan with the current FEM model.
     FitExpression {
@@ -264,9 +265,9 @@ pub fn run_job(job: Job) -> JobResult {
             generic,
             scan,
             landmarks,
-            use_border_points,
+            borders_detected,
         } => JobResult::Registered(
-            register(&generic, &scan, *landmarks, use_border_points).map(Box::new),
+            register(&generic, &scan, *landmarks, borders_detected).map(Box::new),
         ),
     }
 }
@@ -331,13 +332,10 @@ fn register(
     generic: &GenericFace,
     scan: &Mesh,
     landmarks: Landmarks,
-    use_border_points: bool,
+    borders_detected: bool,
 ) -> Result<RegistrationState, String> {
     let params = RegistrationParams::default();
-    let points: Vec<_> = landmarks
-        .iter()
-        .filter(|(p, _)| use_border_points || !crate::pipeline::BORDER_POINTS.contains(p))
-        .collect();
+    let points = crate::pipeline::registration_points(&landmarks, borders_detected);
     let result = crate::registration::register_points(generic, scan, &points, &params)
         .map_err(|e| e.to_string())?;
     // Per-vertex distance for the heat map; filled (unmatched) vertices have no measured value.

@@ -503,14 +503,7 @@ impl FaceModel {
     pub fn deformed_surface(&self, activations: &[f64]) -> Result<Mesh> {
         let mut u = Vec::new();
         self.combine_surface(activations, &mut u)?;
-        let positions = self
-            .surface
-            .positions_mm
-            .iter()
-            .zip(&u)
-            .map(|(p, d)| *p + *d)
-            .collect();
-        Ok(Mesh::new(positions, self.surface.faces.clone()))
+        Ok(self.surface.displaced(&u))
     }
 }
 

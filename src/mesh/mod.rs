@@ -120,6 +120,18 @@ impl Mesh {
         self.faces.len()
     }
 
+    /// The same polygons with every vertex moved by `displacement_mm` (one per vertex; missing
+    /// entries count as zero), normals recomputed: a deformed copy for display and export.
+    pub fn displaced(&self, displacement_mm: &[DVec3]) -> Mesh {
+        let positions = self
+            .positions_mm
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *p + displacement_mm.get(i).copied().unwrap_or(DVec3::ZERO))
+            .collect();
+        Mesh::new(positions, self.faces.clone())
+    }
+
     /// Recomputes [`Mesh::normals`] from the current positions.
     pub fn update_normals(&mut self) {
         self.normals = vertex_normals(&self.positions_mm, &self.faces);

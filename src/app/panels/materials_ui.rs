@@ -28,9 +28,10 @@ pub fn materials_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     let mut started = false;
     let mut slider = |ui: &mut egui::Ui, value: &mut f64, range, text: &str, log: bool| {
         let r = ui.add(egui::Slider::new(value, range).logarithmic(log).text(text));
-        started |= r.drag_started() || (r.changed() && !r.dragged());
         // Re-solve when the drag ends (or on a typed value), not on every frame of the drag.
-        changed |= r.drag_stopped() || (r.changed() && !r.dragged());
+        let (s, f) = super::edit_phase(&r);
+        started |= s;
+        changed |= f;
     };
     ui.label("skin");
     slider(

@@ -85,6 +85,14 @@ pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         .show(ui, |ui| view_ui::view_ui(app, ui));
 }
 
+/// How a value widget's edit progresses this frame: `(started, finished)`. A drag starts
+/// (undo checkpoint) and finishes (send the value for solving) once each; a click or typed
+/// value does both in the same frame. So one drag is one undo step and one re-solve.
+pub fn edit_phase(r: &egui::Response) -> (bool, bool) {
+    let instant = r.changed() && !r.dragged();
+    (r.drag_started() || instant, r.drag_stopped() || instant)
+}
+
 /// A two-column grid of (label, value) rows.
 pub fn figures_grid(ui: &mut egui::Ui, id: &str, rows: &[(&str, String)]) {
     egui::Grid::new(id).num_columns(2).show(ui, |ui| {

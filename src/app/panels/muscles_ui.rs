@@ -32,7 +32,7 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     let mut a = activations.get(&name).copied().unwrap_or(0.0);
                     ui.label(&name);
                     let r = ui.add(egui::Slider::new(&mut a, 0.0..=2.0).fixed_decimals(2));
-                    started |= r.drag_started() || (r.changed() && !r.dragged());
+                    started |= super::edit_phase(&r).0;
                     if r.changed() {
                         changed = true;
                         activations.insert(name.clone(), a);
@@ -76,8 +76,9 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                         ui.small(&def.description);
                     }
                     let mut track = |r: egui::Response| {
-                        started |= r.drag_started() || (r.changed() && !r.dragged());
-                        commit |= r.drag_stopped() || (r.changed() && !r.dragged());
+                        let (s, f) = super::edit_phase(&r);
+                        started |= s;
+                        commit |= f;
                     };
                     track(ui.add(egui::Slider::new(&mut def.force_n, 0.0..=1.0).text("force (N)")));
                     track(
