@@ -12,44 +12,53 @@ struct Xvfb(Child);
 
 impl Drop for Xvfb {
     fn drop(&mut self) {
+        // SIGTERM, so the server removes its lock and socket (a killed one leaves both behind,
+        // and left-overs used to exhaust the display numbers across runs).
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.0.id().to_string()])
+            .status();
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(3) {
+            if matches!(self.0.try_wait(), Ok(Some(_))) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
 }
 
-/// Starts Xvfb on a free display number.
+/// Starts Xvfb on a display number it picks itself (`-displayfd`: the server takes the first
+/// free one, clearing stale locks, and prints it once it accepts connections).
 fn start_xvfb() -> (Xvfb, String) {
-    for display in 90..140 {
-        if Path::new(&format!("/tmp/.X11-unix/X{display}")).exists()
-            || Path::new(&format!("/tmp/.X{display}-lock")).exists()
-        {
-            continue;
-        }
-        let xvfb = Xvfb(
-            Command::new("Xvfb")
-                .args([
-                    &format!(":{display}"),
-                    "-screen",
-                    "0",
-                    "1280x800x24",
-                    "-nolisten",
-                    "tcp",
-                ])
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .expect("Xvfb is needed for the window test: run scripts/setup.sh"),
-        );
-        let socket = format!("/tmp/.X11-unix/X{display}");
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(10) {
-            if Path::new(&socket).exists() {
-                return (xvfb, format!(":{display}"));
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-    panic!("could not start Xvfb");
+    use std::io::BufRead;
+    let mut child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "1280x800x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("Xvfb is needed for the window test: run scripts/setup.sh");
+    let stdout = child.stdout.take().expect("piped stdout");
+    let xvfb = Xvfb(child);
+    let mut line = String::new();
+    std::io::BufReader::new(stdout)
+        .read_line(&mut line)
+        .expect("read Xvfb's display number");
+    let display = line.trim();
+    assert!(
+        !display.is_empty() && display.chars().all(|c| c.is_ascii_digit()),
+        "Xvfb did not start (printed {line:?})"
+    );
+    (xvfb, format!(":{display}"))
 }
 
 /// One window at a time: the tests of this file share the display search.
