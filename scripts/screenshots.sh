@@ -28,3 +28,9 @@ run generic_cutaway --expression broad_smile --layers cutaway --yaw 40 --pitch 1
 for e in sadness surprise anger disgust fear scorn pain; do
   run "generic_$e" --expression "$e" --show displacement
 done
+# One editor session on cara1 (denoise and compare, fix a landmark, register, heat map, softer
+# skin, a mirrored smile, store it as a preset, undo, redo): screenshots/session/*.png.
+mkdir -p "$out/session"
+if [ -n "${DISPLAY:-}" ]; then "$bin" view --session scripts/session_cara1.ron
+else xvfb-run -a -s "-screen 0 1400x900x24" "$bin" view --session scripts/session_cara1.ron; fi
+echo "screenshots: $out/session/"

@@ -74,6 +74,10 @@ pub enum Command {
         /// Also print the baselines' scores for every k.
         #[arg(long)]
         sweeps: bool,
+        /// Only list the vertices the default filter leaves more than 2 mm off (worst
+        /// first, at most this many), with where they are and whether they moved.
+        #[arg(long, value_name = "N")]
+        worst: Option<usize>,
     },
     /// Register the generic face to a scan (paper 2.1.3) and print the quality report as JSON.
     Register {
@@ -317,10 +321,15 @@ pub struct ViewArgs {
     /// time as JSON and exit (builds the FEM model if the script did not).
     #[arg(long, value_name = "FRAMES")]
     pub measure_slider: Option<u32>,
+    /// Run a scripted editor session (a RON list of steps: open, denoise, move a landmark,
+    /// set a slider, store a preset, undo, screenshot, …; see `src/app/session.rs`) in this
+    /// window after the other options' steps, then close it.
+    #[arg(long, value_name = "RON")]
+    pub session: Option<PathBuf>,
 }
 
 /// FEM layers drawn in the viewport.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
 pub enum LayersShown {
     /// The skin surface only.
     Skin,
@@ -332,7 +341,7 @@ pub enum LayersShown {
 }
 
 /// Per-vertex colouring of the viewport.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Deserialize)]
 pub enum Overlay {
     /// Plain shading.
     #[default]
@@ -414,9 +423,25 @@ pub fn run(cli: Cli) -> Result<()> {
             max_scans,
             k_max,
             sweeps,
+            worst,
         }) => {
             let pairs = denoise::eval::load_pairs(&noisy_dir, &clean_dir, max_scans)?;
             anyhow::ensure!(!pairs.is_empty(), "{}: no scans", noisy_dir.display());
+            if let Some(n) = worst {
+                let over =
+                    denoise::eval::vertices_over(&pairs, &denoise::DenoiseParams::default(), 2.0)?;
+                let count = |f: &dyn Fn(&denoise::eval::VertexError) -> bool| {
+                    over.iter().filter(|v| f(v)).count()
+                };
+                return print_json(&json!({
+                    "over_2mm": over.len(),
+                    "spike": count(&|v| v.spike),
+                    "spike_untouched": count(&|v| v.spike && !v.moved),
+                    "boundary": count(&|v| v.boundary),
+                    "damage": count(&|v| !v.spike && v.moved),
+                    "worst": over.iter().take(n).collect::<Vec<_>>(),
+                }));
+            }
             let b = denoise::eval::benchmark(&pairs, k_max.max(1))?;
             let mut v = json!({ "scans": b.scans, "table": b.table });
             if sweeps {

@@ -407,7 +407,7 @@ fn edge_face_count(mesh: &Mesh, topology: &Topology, a: usize, b: usize) -> usiz
 }
 
 /// Displacements at or below this count as "did not move", mm.
-const STILL_MM: f64 = 1e-9;
+pub(crate) const STILL_MM: f64 = 1e-9;
 
 /// Runs the filter on `positions`; `observe(iteration, positions)` is called after every
 /// iteration (1-based), so a sweep over k costs one run (used by [`eval`]).

@@ -293,3 +293,110 @@ fn the_whole_pipeline_on_a_real_scan_denoise_detect_register_fem() {
     apply_with(&mut worker, &mut doc, Command::Undo);
     assert!(doc.edits.landmarks.is_none());
 }
+
+#[test]
+fn a_landmark_drag_over_many_frames_is_one_undo_step() {
+    let mut doc = Document::new(generic_face::build());
+    let original = doc.edits.landmarks.unwrap();
+    // What the viewport sends: a checkpoint when the drag starts, a move every frame.
+    apply(&mut doc, Command::Checkpoint);
+    for k in 1..=10 {
+        let p = DVec3::new(k as f64, 0.0, 0.0);
+        apply(&mut doc, Command::DragLandmark(FeaturePoint::Chin, p));
+    }
+    let dragged = doc.edits.landmarks.unwrap();
+    assert_eq!(dragged.get(FeaturePoint::Chin), DVec3::new(10.0, 0.0, 0.0));
+    apply(&mut doc, Command::Undo);
+    assert_eq!(doc.edits.landmarks.as_ref(), Some(&original), "one undo");
+    assert!(!doc.history.can_undo(), "and only one step");
+    apply(&mut doc, Command::Redo);
+    assert_eq!(doc.edits.landmarks.as_ref(), Some(&dragged));
+}
+
+#[test]
+fn session_steps_parse_and_become_the_commands_the_panels_send() {
+    use facesynth::app::session::{Action, Step, parse};
+    let steps = parse(
+        r#"[
+            BuildFem,
+            Activation(muscle: "zygomatic_major_left", value: 1.25, mirror: true),
+            Activation(muscle: "labii_nasi_right", value: 0.5, mirror: false),
+            SkinModulus(2800.0),
+            Panels(["muscles"]),
+            Screenshot("x.png"),
+        ]"#,
+    )
+    .unwrap();
+    assert_eq!(steps.len(), 6);
+    assert_eq!(steps[0], Step::BuildFem);
+    let doc = Document::new(generic_face::build());
+    let activations = |step: &Step| match step.action(&doc).unwrap() {
+        Action::Commands(c) => match c.as_slice() {
+            [Command::Checkpoint, Command::SetActivations(a)] => a.clone(),
+            other => panic!("a slider is a checkpoint and new activations, got {other:?}"),
+        },
+        other => panic!("not commands: {other:?}"),
+    };
+    let a = activations(&steps[1]);
+    assert_eq!(a.get("zygomatic_major_left"), Some(&1.25));
+    assert_eq!(a.get("zygomatic_major_right"), Some(&1.25), "mirrored");
+    let b = activations(&steps[2]);
+    assert_eq!(b.get("labii_nasi_right"), Some(&0.5));
+    assert_eq!(b.get("labii_nasi_left"), None, "not mirrored");
+    match steps[3].action(&doc).unwrap() {
+        Action::Commands(c) => match c.as_slice() {
+            [Command::Checkpoint, Command::SetFemParams(p)] => {
+                assert_eq!(p.skin.young_modulus_pa, 2800.0);
+                assert_eq!(p.fat, doc.edits.fem.fat, "only the skin changes");
+            }
+            other => panic!("{other:?}"),
+        },
+        other => panic!("{other:?}"),
+    }
+    // Mistakes are named, not ignored.
+    let bad = parse(r#"[Activation(muscle: "zygomatic", value: 1.0, mirror: true)]"#).unwrap();
+    let e = bad[0].action(&doc).unwrap_err();
+    assert!(e.contains("zygomatic"), "{e}");
+    let bad = parse(r#"[Panels(["muscle"])]"#).unwrap();
+    assert!(bad[0].action(&doc).unwrap_err().contains("muscle"));
+    let e = parse("[Denoise, Frobnicate]").unwrap_err();
+    assert!(e.contains("Frobnicate"), "{e}");
+    // A nudge needs a scan to snap to.
+    let nudge = parse(r#"[NudgeLandmark(point: "chin", offset_mm: (0.0, 1.0, 0.0))]"#).unwrap();
+    assert!(nudge[0].action(&doc).unwrap_err().contains("scan"));
+}
+
+#[test]
+fn a_session_nudge_snaps_the_point_to_the_scan_near_the_offset() {
+    use facesynth::app::session::{Action, parse};
+    let mut worker = WorkerState::default();
+    let mut doc = Document::new(generic_face::build());
+    apply_with(
+        &mut worker,
+        &mut doc,
+        Command::Open(Some(common::gavab("cara1_frontal1.wrl"))),
+    );
+    apply_with(&mut worker, &mut doc, Command::DetectLandmarks);
+    let before = doc
+        .edits
+        .landmarks
+        .unwrap()
+        .get(FeaturePoint::MouthCornerLeft);
+    let step = parse(r#"[NudgeLandmark(point: "mouth_corner_left", offset_mm: (0.0, 4.0, 0.0))]"#)
+        .unwrap()
+        .remove(0);
+    let Action::Commands(c) = step.action(&doc).unwrap() else {
+        panic!("a nudge is a command");
+    };
+    let [Command::MoveLandmark(FeaturePoint::MouthCornerLeft, to)] = c.as_slice() else {
+        panic!("a nudge is one landmark move, got {c:?}");
+    };
+    let scan = doc.working_mesh().unwrap();
+    assert!(
+        scan.positions_mm.contains(to),
+        "the point is snapped onto a scan vertex"
+    );
+    // GavabDB's grid is ~1.5 mm: the snapped point is within a grid step or two of the target.
+    let target = before + DVec3::new(0.0, 4.0, 0.0);
+    assert!((*to - target).length() < 3.0, "{to} vs {target}");
+}

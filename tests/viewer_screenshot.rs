@@ -176,3 +176,112 @@ fn viewer_shows_the_denoise_heat_map_with_spike_markers() {
     let _ = std::fs::create_dir_all(&keep);
     let _ = std::fs::copy(&png, keep.join("cara1_denoise.png"));
 }
+
+/// Runs `facesynth view --session FILE` (the session's own screenshots, no `--screenshot`).
+fn run_session(session: &Path) {
+    let _guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let (_xvfb, display) = start_xvfb();
+    let runtime = std::env::temp_dir().join("facesynth-xdg");
+    std::fs::create_dir_all(&runtime).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(["view", "--session"])
+        .arg(session)
+        .env("DISPLAY", &display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("XDG_RUNTIME_DIR", &runtime)
+        .output()
+        .expect("run facesynth");
+    assert!(
+        out.status.success(),
+        "facesynth view --session failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Share of viewport pixels (right two thirds, where the side panel is not) that differ
+/// between two screenshots.
+fn viewport_difference(a: &Path, b: &Path) -> f64 {
+    let a = image::open(a).expect("a PNG").to_rgb8();
+    let b = image::open(b).expect("a PNG").to_rgb8();
+    assert_eq!(a.dimensions(), b.dimensions());
+    let (w, h) = a.dimensions();
+    let (mut differ, mut total) = (0usize, 0usize);
+    for y in 0..h {
+        for x in w / 3..w {
+            let (p, q) = (a.get_pixel(x, y), b.get_pixel(x, y));
+            let d: i32 = (0..3).map(|c| (p[c] as i32 - q[c] as i32).abs()).sum();
+            differ += usize::from(d > 30);
+            total += 1;
+        }
+    }
+    differ as f64 / total as f64
+}
+
+#[test]
+fn one_session_shapes_a_mirrored_smile_softens_the_skin_stores_a_preset_and_undoes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().display();
+    let session = dir.path().join("session.ron");
+    std::fs::write(
+        &session,
+        format!(
+            r#"[
+                BuildFem,
+                Show(Displacement),
+                Activation(muscle: "zygomatic_major_left", value: 1.5, mirror: true),
+                Screenshot("{d}/a_smile.png"),
+                SkinModulus(2800.0),
+                Screenshot("{d}/b_soft.png"),
+                StorePreset("session_smile"),
+                SavePresets("{d}/presets.ron"),
+                Undo,
+                Undo,
+                Screenshot("{d}/c_undo.png"),
+                Redo,
+                Redo,
+                Screenshot("{d}/d_redo.png"),
+            ]"#
+        ),
+    )
+    .unwrap();
+    run_session(&session);
+    let shot = |n: &str| dir.path().join(n);
+    let (covered, _) = viewport_stats(&shot("a_smile.png"));
+    assert!(covered > 0.10, "the face is not drawn");
+    // Softer skin, same forces: the face moves further (colours and legend change).
+    let soft = viewport_difference(&shot("a_smile.png"), &shot("b_soft.png"));
+    assert!(
+        soft > 0.01,
+        "softening the skin changed only {:.2}%",
+        soft * 100.0
+    );
+    // Undo twice (the preset, then the modulus) gives back the first picture; redo the second.
+    let undo = viewport_difference(&shot("a_smile.png"), &shot("c_undo.png"));
+    assert!(
+        undo < 0.002,
+        "undo left {:.2}% of the viewport different",
+        undo * 100.0
+    );
+    let redo = viewport_difference(&shot("b_soft.png"), &shot("d_redo.png"));
+    assert!(
+        redo < 0.002,
+        "redo left {:.2}% of the viewport different",
+        redo * 100.0
+    );
+    let presets = std::fs::read_to_string(shot("presets.ron")).unwrap();
+    assert!(
+        presets.contains("session_smile"),
+        "the stored preset was saved"
+    );
+    let set: facesynth::fem::expressions::ExpressionSet = ron::from_str(&presets).unwrap();
+    let smile = set
+        .expressions
+        .iter()
+        .find(|e| e.name == "session_smile")
+        .expect("preset in the file");
+    assert_eq!(
+        smile.activations.get("zygomatic_major_right"),
+        Some(&1.5),
+        "mirrored"
+    );
+}

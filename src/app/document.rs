@@ -192,6 +192,9 @@ pub enum Command {
     DetectLandmarks,
     /// Place one feature point (snapped to the surface by the caller).
     MoveLandmark(FeaturePoint, DVec3),
+    /// Move a feature point during a drag: no undo step of its own (the drag's start sends
+    /// [`Command::Checkpoint`], so the whole drag is one step).
+    DragLandmark(FeaturePoint, DVec3),
     SetLandmarks(Box<Landmarks>),
     LoadLandmarks(PathBuf),
     SaveLandmarks(PathBuf),
@@ -314,6 +317,18 @@ impl Document {
     }
 
     /// Applies a command; returns the jobs to run on the worker.
+    fn place_landmark(&mut self, point: FeaturePoint, to_mm: DVec3) -> Vec<Job> {
+        let mut landmarks = self.edits.landmarks.unwrap_or_else(|| {
+            // No landmarks yet: start from the generic face's, moved onto the scan later one
+            // by one.
+            self.generic.landmarks()
+        });
+        landmarks.set(point, to_mm);
+        self.edits.landmarks = Some(landmarks);
+        self.version += 1;
+        Vec::new()
+    }
+
     pub fn apply(&mut self, command: Command) -> Vec<Job> {
         self.error = None;
         match command {
@@ -361,17 +376,10 @@ impl Document {
                 None => self.fail("open a scan first"),
             },
             Command::MoveLandmark(point, to_mm) => {
-                let mut landmarks = self.edits.landmarks.unwrap_or_else(|| {
-                    // No landmarks yet: start from the generic face's, moved onto the scan
-                    // later one by one.
-                    self.generic.landmarks()
-                });
                 self.history.checkpoint(&self.edits);
-                landmarks.set(point, to_mm);
-                self.edits.landmarks = Some(landmarks);
-                self.version += 1;
-                Vec::new()
+                self.place_landmark(point, to_mm)
             }
+            Command::DragLandmark(point, to_mm) => self.place_landmark(point, to_mm),
             Command::SetLandmarks(landmarks) => {
                 self.history.checkpoint(&self.edits);
                 self.edits.landmarks = Some(*landmarks);

@@ -5,6 +5,7 @@
 pub mod document;
 mod measure;
 mod panels;
+pub mod session;
 pub mod undo;
 mod viewport_ui;
 pub mod worker;
@@ -25,7 +26,12 @@ use worker::Worker;
 /// Opens the editor window and runs it until it is closed (or, with `--screenshot`, until the
 /// screenshot is written). An error in screenshot mode (file unreadable, no GPU) is returned.
 pub fn run(args: ViewArgs) -> Result<()> {
-    let scripted = args.screenshot.is_some() || args.measure_slider.is_some();
+    let scripted =
+        args.screenshot.is_some() || args.measure_slider.is_some() || args.session.is_some();
+    let session = match &args.session {
+        Some(path) => session::load(path)?,
+        None => Vec::new(),
+    };
     if scripted {
         // eframe may create the storage folder again while shutting down (empty): sweep the
         // empty ones earlier scripted runs left behind.
@@ -47,7 +53,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
         renderer: eframe::Renderer::Wgpu,
         // A scripted run must neither read nor overwrite the user's saved settings (panel
         // states included), so it gets a storage folder of its own that starts empty.
-        persist_window: args.screenshot.is_none(),
+        persist_window: !scripted,
         persistence_path: scripted.then(|| {
             std::env::temp_dir().join(format!("facesynth-scripted-{}", std::process::id()))
         }),
@@ -65,7 +71,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
                 .as_ref()
                 .ok_or("the wgpu renderer is not available")?;
             ViewportRenderer::install(render_state);
-            Ok(Box::new(EditorApp::new(cc, args, outcome_app)))
+            Ok(Box::new(EditorApp::new(cc, args, session, outcome_app)))
         }),
     )
     .map_err(|e| anyhow!("could not open the editor window: {e}"));
@@ -197,8 +203,14 @@ pub struct EditorApp {
     settings: Settings,
     /// Commands from the panels, applied once per frame.
     commands: Vec<Command>,
-    /// Scripted commands (from the command line), each sent when the worker is idle.
-    script: VecDeque<Command>,
+    /// Scripted steps (command line, `--session`), each run when the previous one is done.
+    script: VecDeque<session::Step>,
+    /// Close the window once the script has run (`--screenshot`, `--session`).
+    exit_when_done: bool,
+    /// A scripted run: the user's saved settings are neither read nor written.
+    scripted: bool,
+    /// The feature point being dragged in the viewport (one undo step per drag).
+    landmark_drag: Option<FeaturePoint>,
     /// The feature point the next click on the surface places.
     picking: Option<FeaturePoint>,
     denoise_params: crate::denoise::DenoiseParams,
@@ -215,6 +227,8 @@ pub struct EditorApp {
     /// Which side-panel sections start open: the last scripted step's, so a screenshot shows
     /// the figures of what it computed; all of them for an interactive start.
     panels_open: panels::PanelsOpen,
+    /// Side-panel sections a session step opened (all others closed), applied next frame.
+    panels_force: Option<Vec<String>>,
     scene: Option<viewport_ui::SceneCache>,
     /// Time of the last scene rebuild (basis sum + GPU mesh arrays), ms.
     scene_build_ms: f64,
@@ -227,10 +241,13 @@ impl EditorApp {
     fn new(
         cc: &eframe::CreationContext<'_>,
         args: ViewArgs,
+        session: Vec<session::Step>,
         outcome: Arc<Mutex<Option<String>>>,
     ) -> Self {
-        let settings: Settings = match (&args.screenshot, cc.storage) {
-            (None, Some(storage)) => eframe::get_value(storage, SETTINGS_KEY).unwrap_or_default(),
+        let scripted =
+            args.screenshot.is_some() || args.session.is_some() || args.measure_slider.is_some();
+        let settings: Settings = match (scripted, cc.storage) {
+            (false, Some(storage)) => eframe::get_value(storage, SETTINGS_KEY).unwrap_or_default(),
             _ => Settings::default(),
         };
         let mut view = settings.view;
@@ -261,7 +278,14 @@ impl EditorApp {
             view,
             settings,
             commands: Vec::new(),
-            script: script_from_args(&args),
+            script: script_from_args(&args)
+                .into_iter()
+                .chain(session)
+                .chain(args.screenshot.clone().map(session::Step::Screenshot))
+                .collect(),
+            exit_when_done: args.screenshot.is_some() || args.session.is_some(),
+            scripted,
+            landmark_drag: None,
             picking: None,
             denoise_params: Default::default(),
             fem_draft: None,
@@ -270,15 +294,11 @@ impl EditorApp {
             preset_name: "my_expression".into(),
             blend: Default::default(),
             panels_open: panels::PanelsOpen::for_args(&args),
+            panels_force: None,
             measure: args.measure_slider.map(measure::SliderMeasurement::new),
             scene: None,
             scene_build_ms: 0.0,
-            screenshot: args.screenshot.map(|path| ScreenshotPlan {
-                path,
-                frames_drawn: 0,
-                requested: false,
-                receiver: None,
-            }),
+            screenshot: None,
             outcome,
         };
         if args.file.is_none() {
@@ -306,12 +326,27 @@ impl EditorApp {
             (self.camera.yaw_rad, self.camera.pitch_rad) = (yaw, pitch);
             self.framed_on = Some(scan.bbox_mm);
         }
-        // A scripted step waits until the previous one has finished; a failure stops the script.
+        // A scripted step waits until the previous one (and its screenshot) has finished; a
+        // failure stops the script.
         if !self.doc.busy()
+            && self.commands.is_empty()
+            && self.screenshot.is_none()
             && self.doc.error.is_none()
             && let Some(next) = self.script.pop_front()
         {
-            self.commands.push(next);
+            match next.action(&self.doc) {
+                Ok(session::Action::Commands(c)) => self.commands.extend(c),
+                Ok(session::Action::View(change)) => self.change_view(change),
+                Ok(session::Action::Screenshot(path)) => {
+                    self.screenshot = Some(ScreenshotPlan {
+                        path,
+                        frames_drawn: 0,
+                        requested: false,
+                        receiver: None,
+                    })
+                }
+                Err(e) => self.doc.error = Some(format!("session step {next:?}: {e}")),
+            }
         }
         for command in std::mem::take(&mut self.commands) {
             if let Command::Open(Some(path)) = &command {
@@ -321,6 +356,25 @@ impl EditorApp {
                 self.worker.send(job);
             }
         }
+    }
+
+    fn change_view(&mut self, change: session::ViewChange) {
+        use session::ViewChange as V;
+        match change {
+            V::Show(o) => self.view.overlay = o,
+            V::Layers(l) => {
+                self.view.layers = LayerView::from_args(l, self.view.layers.muscles);
+            }
+            V::Muscles(b) => self.view.layers.muscles = b,
+            V::ShowScan(b) => self.view.show_scan = b,
+            V::ShowOriginal(b) => self.view.show_original = b,
+            V::Panels(open) => self.panels_force = Some(open),
+            V::Camera { yaw_deg, pitch_deg } => {
+                self.camera.yaw_rad = yaw_deg.to_radians();
+                self.camera.pitch_rad = pitch_deg.to_radians();
+            }
+        }
+        self.doc.version += 1;
     }
 
     fn remember(&mut self, path: PathBuf) {
@@ -349,18 +403,24 @@ impl EditorApp {
         }
     }
 
+    /// Scripted runs: takes the screenshot a step asked for, and closes the window when the
+    /// script is done (or has failed).
     fn handle_screenshot(&mut self, ctx: &egui::Context) {
-        let Some(plan) = &mut self.screenshot else {
+        if !self.exit_when_done {
             return;
-        };
-        if let Some(rx) = &plan.receiver
-            && let Ok(image) = rx.try_recv()
+        }
+        if let Some(plan) = &self.screenshot
+            && let Some(rx) = &plan.receiver
         {
-            let result = save_png(&plan.path, &image);
-            if let Err(e) = result {
-                self.set_outcome(e.to_string());
+            if let Ok(image) = rx.try_recv() {
+                if let Err(e) = save_png(&plan.path, &image) {
+                    self.set_outcome(e.to_string());
+                    ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                    return;
+                }
+                self.screenshot = None;
             }
-            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            ctx.request_repaint();
             return;
         }
         if let Some(error) = &self.doc.error {
@@ -369,11 +429,16 @@ impl EditorApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
-        if self.doc.busy() || !self.script.is_empty() || !self.commands.is_empty() {
+        if self.doc.busy() || !self.commands.is_empty() {
             ctx.request_repaint();
             return;
         }
         let Some(plan) = &mut self.screenshot else {
+            if self.script.is_empty() {
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            } else {
+                ctx.request_repaint();
+            }
             return;
         };
         plan.frames_drawn += 1;
@@ -399,32 +464,33 @@ impl EditorApp {
 }
 
 /// The command-line steps of `facesynth view`, in pipeline order.
-fn script_from_args(args: &ViewArgs) -> VecDeque<Command> {
-    let mut script = VecDeque::new();
+fn script_from_args(args: &ViewArgs) -> Vec<session::Step> {
+    use session::Step;
+    let mut script = Vec::new();
     if let Some(file) = &args.file {
-        script.push_back(Command::Open(Some(file.clone())));
+        script.push(Step::Open(file.clone()));
     }
     if args.denoise {
-        script.push_back(Command::Denoise(Default::default()));
+        script.push(Step::Denoise);
     }
     if let Some(l) = &args.landmarks {
-        script.push_back(Command::LoadLandmarks(l.clone()));
+        script.push(Step::LoadLandmarks(l.clone()));
     } else if args.file.is_some() && (args.detect || args.register) {
         // Registration needs the points: detect them when none are given.
-        script.push_back(Command::DetectLandmarks);
+        script.push(Step::DetectLandmarks);
     }
     if args.register {
-        script.push_back(Command::Register);
+        script.push(Step::Register);
     }
     if args.fem || args.expression.is_some() || args.fit.is_some() || args.measure_slider.is_some()
     {
-        script.push_back(Command::BuildFem);
+        script.push(Step::BuildFem);
     }
     if let Some(name) = &args.expression {
-        script.push_back(Command::ApplyPreset(name.clone()));
+        script.push(Step::ApplyPreset(name.clone()));
     }
     if let Some(scan) = &args.fit {
-        script.push_back(Command::FitExpression(scan.clone()));
+        script.push(Step::FitExpression(scan.clone()));
     }
     script
 }
@@ -474,7 +540,7 @@ impl eframe::App for EditorApp {
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
-        if self.screenshot.is_none() {
+        if !self.scripted {
             self.settings.view = self.view;
             eframe::set_value(storage, SETTINGS_KEY, &self.settings);
         }

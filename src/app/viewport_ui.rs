@@ -5,12 +5,14 @@
 use super::{EditorApp, LayerView, feature_colour};
 use crate::Mesh;
 use crate::cli::Overlay;
+use crate::feature_points::FeaturePoint;
 use crate::mesh::pick::ray_hit;
 use crate::render::colormap::ColourScale;
 use crate::render::{
     DrawStyle, MarkerInstance, MeshData, OrbitCamera, SceneItem, ViewportCallback,
 };
 use eframe::{egui, egui_wgpu};
+use glam::DVec3;
 use std::sync::Arc;
 
 /// Background of the viewport (linear RGB): a dark blue-grey that skin tones read well on.
@@ -413,6 +415,29 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
 }
 
 fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+    // Dragging a landmark marker moves the point over the surface; anywhere else a primary
+    // drag orbits.
+    if response.drag_started_by(egui::PointerButton::Primary)
+        && let Some(press) = ui.input(|i| i.pointer.press_origin())
+    {
+        app.landmark_drag = landmark_under(app, press - rect.min, rect);
+        if app.landmark_drag.is_some() {
+            app.commands.push(super::document::Command::Checkpoint);
+        }
+    }
+    if let Some(point) = app.landmark_drag {
+        if response.dragged_by(egui::PointerButton::Primary)
+            && let Some(pos) = response.interact_pointer_pos()
+            && let Some(hit) = surface_hit(app, pos - rect.min, rect)
+        {
+            app.commands
+                .push(super::document::Command::DragLandmark(point, hit));
+        }
+        if response.drag_stopped() {
+            app.landmark_drag = None;
+        }
+        return;
+    }
     let camera = &mut app.camera;
     let delta = response.drag_delta();
     if response.dragged_by(egui::PointerButton::Primary) {
@@ -437,21 +462,44 @@ fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect:
     if response.clicked()
         && let Some(point) = app.picking
         && let Some(pos) = response.interact_pointer_pos()
-        && let Some(surface) = app.scene.as_ref().and_then(|s| s.pick_surface.clone())
+        && let Some(hit) = surface_hit(app, pos - rect.min, rect)
     {
-        let local = pos - rect.min;
-        let (origin, dir) = app.camera.ray_through_pixel(
-            local.x as f64,
-            local.y as f64,
-            rect.width() as f64,
-            rect.height() as f64,
-        );
-        if let Some(hit) = ray_hit(&surface, origin, dir) {
-            app.commands
-                .push(super::document::Command::MoveLandmark(point, hit.point_mm));
-            app.picking = None;
-        }
+        app.commands
+            .push(super::document::Command::MoveLandmark(point, hit));
+        app.picking = None;
     }
+}
+
+/// Where the ray through a viewport pixel meets the pickable surface, mm.
+fn surface_hit(app: &EditorApp, local: egui::Vec2, rect: egui::Rect) -> Option<DVec3> {
+    let surface = app.scene.as_ref().and_then(|s| s.pick_surface.clone())?;
+    let (origin, dir) = app.camera.ray_through_pixel(
+        local.x as f64,
+        local.y as f64,
+        rect.width() as f64,
+        rect.height() as f64,
+    );
+    ray_hit(&surface, origin, dir).map(|hit| hit.point_mm)
+}
+
+/// The feature point whose marker is within grabbing distance of a viewport pixel.
+fn landmark_under(app: &EditorApp, local: egui::Vec2, rect: egui::Rect) -> Option<FeaturePoint> {
+    const GRAB_PX: f64 = 9.0;
+    if !app.view.show_landmarks {
+        return None;
+    }
+    let landmarks = app.doc.edits.landmarks.as_ref()?;
+    landmarks
+        .iter()
+        .filter_map(|(p, x)| {
+            let [px, py] =
+                app.camera
+                    .project_to_pixels(x, rect.width() as f64, rect.height() as f64)?;
+            let d = ((px - local.x as f64).powi(2) + (py - local.y as f64).powi(2)).sqrt();
+            (d <= GRAB_PX).then_some((p, d))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(p, _)| p)
 }
 
 /// A vertical colour bar with ticks at the viewport's right edge.

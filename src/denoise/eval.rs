@@ -13,7 +13,7 @@
 //! * **clean RMSE**: the filter run on the clean twin itself, RMSE of its changes (damage
 //!   done to noise-free data: ideally 0).
 
-use super::{DenoiseMethod, DenoiseParams, DenoiseReport, FilterNeighbours, denoise};
+use super::{DenoiseMethod, DenoiseParams, DenoiseReport, FilterNeighbours, STILL_MM, denoise};
 use crate::ground_truth::{ScanTruth, TruthGrid};
 use crate::mesh::{Mesh, Topology};
 use crate::{Error, Result, io};
@@ -297,6 +297,53 @@ pub fn sweep_iterations(
         .enumerate()
         .map(|(i, acc)| acc.score(label, Some(params.method), i + 1))
         .collect())
+}
+
+/// One vertex left more than a tolerance off its clean twin after denoising (diagnostics).
+#[derive(Debug, Clone, Serialize)]
+pub struct VertexError {
+    pub scan: String,
+    pub vertex: usize,
+    pub error_mm: f64,
+    /// Signed z error (output − clean), mm.
+    pub dz_mm: f64,
+    /// Whether an injected spike sits on this vertex.
+    pub spike: bool,
+    pub boundary: bool,
+    /// Whether the filter moved the vertex at all.
+    pub moved: bool,
+}
+
+/// Every vertex whose error after [`denoise`] with `params` exceeds `tolerance_mm`, worst
+/// first: where the filter still fails (untouched spikes, rims, damage on sharp features).
+pub fn vertices_over(
+    pairs: &[ScanPair],
+    params: &DenoiseParams,
+    tolerance_mm: f64,
+) -> Result<Vec<VertexError>> {
+    let mut out = Vec::new();
+    for pair in pairs {
+        let mut mesh = pair.noisy.clone();
+        let topology = Topology::new(&mesh);
+        let report = denoise(&mut mesh, params)?;
+        for (i, p) in mesh.positions_mm.iter().enumerate() {
+            let c = pair.clean.positions_mm[pair.to_clean[i] as usize];
+            let e = p.distance(c);
+            if e > tolerance_mm {
+                out.push(VertexError {
+                    scan: pair.name.clone(),
+                    vertex: i,
+                    error_mm: e,
+                    dz_mm: p.z - c.z,
+                    spike: pair.is_spike[i],
+                    boundary: topology.is_boundary[i],
+                    moved: report.displacement_mm[i] > STILL_MM,
+                });
+            }
+        }
+    }
+    out.sort_by(|a, b| b.error_mm.total_cmp(&a.error_mm));
+    Ok(out)
 }
 
 /// The k with the lowest RMSE of a sweep.

@@ -65,6 +65,11 @@ pub struct FitResult {
     pub aligned_scan: Mesh,
 }
 
+/// ICP pairs farther apart than this many times the median pair distance (but at least
+/// [`ICP_TRIM_MIN_MM`]) are left out of a round.
+const ICP_TRIM_FACTOR: f64 = 2.5;
+const ICP_TRIM_MIN_MM: f64 = 1.0;
+
 /// Stable vertices for rigid alignment: the upper forehead and the nose.
 fn stable_vertices(model: &FaceModel) -> Result<Vec<usize>> {
     let s = &model.surface;
@@ -98,15 +103,14 @@ pub fn align_scan(
 ) -> Result<Mesh> {
     let mut aligned = scan.clone();
     if let Some(lm) = scan_landmarks {
+        // Points that expressions barely move: the outer eye corners ride up with the cheeks
+        // in a smile, and the forehead point is a border (hair line) estimate.
         let stable = [
             FeaturePoint::NoseTip,
             FeaturePoint::InnerEyeLeft,
             FeaturePoint::InnerEyeRight,
-            FeaturePoint::OuterEyeLeft,
-            FeaturePoint::OuterEyeRight,
             FeaturePoint::NoseCornerLeft,
             FeaturePoint::NoseCornerRight,
-            FeaturePoint::Forehead,
         ];
         let from: Vec<DVec3> = stable.iter().map(|&p| lm.get(p)).collect();
         let to: Vec<DVec3> = stable
@@ -119,15 +123,28 @@ pub fn align_scan(
     let stable = stable_vertices(model)?;
     for _ in 0..params.icp_rounds {
         let index = SurfaceIndex::new(&aligned, 4.0);
-        let mut from = Vec::new();
-        let mut to = Vec::new();
+        let mut pairs = Vec::new();
         for &v in &stable {
             let p = reference_mm[v];
-            if let Some((_, c)) = index.closest(p, params.max_distance_mm) {
-                from.push(c);
-                to.push(p);
+            if let Some((d, c)) = index.closest(p, params.max_distance_mm) {
+                pairs.push((d, c, p));
             }
         }
+        // Trimmed ICP: pairs much farther apart than the typical one are hair, holes or
+        // skin that the expression moved, and would drag the rigid fit.
+        let mut ds: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+        let limit = if ds.is_empty() {
+            0.0
+        } else {
+            let mid = ds.len() / 2;
+            let median = *ds.select_nth_unstable_by(mid, f64::total_cmp).1;
+            (ICP_TRIM_FACTOR * median).max(ICP_TRIM_MIN_MM)
+        };
+        let (from, to): (Vec<DVec3>, Vec<DVec3>) = pairs
+            .iter()
+            .filter(|p| p.0 <= limit)
+            .map(|p| (p.1, p.2))
+            .unzip();
         if from.len() < 10 {
             return Err(FemError::Definition(format!(
                 "expression scan does not overlap the model's forehead and nose ({} points within {} mm); give --expression-landmarks",

@@ -62,28 +62,38 @@ pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     }
     ui.separator();
     let open = app.panels_open;
-    egui::CollapsingHeader::new("Denoise")
-        .default_open(open.denoise)
-        .show(ui, |ui| denoise_ui::denoise_ui(app, ui));
-    egui::CollapsingHeader::new("Landmarks")
-        .default_open(open.landmarks)
+    // A session step may set which sections are open (once; the user can toggle them again).
+    let force = app.panels_force.take();
+    let header = |title: &str, key: &str, default: bool| {
+        let h = egui::CollapsingHeader::new(title).default_open(default);
+        match &force {
+            Some(keys) => h.open(Some(keys.iter().any(|k| k == key))),
+            None => h,
+        }
+    };
+    header("Denoise", "denoise", open.denoise).show(ui, |ui| denoise_ui::denoise_ui(app, ui));
+    header("Landmarks", "landmarks", open.landmarks)
         .show(ui, |ui| landmarks_ui::landmarks_ui(app, ui));
-    egui::CollapsingHeader::new("Registration")
-        .default_open(open.registration)
+    header("Registration", "registration", open.registration)
         .show(ui, |ui| registration_ui::registration_ui(app, ui));
-    egui::CollapsingHeader::new("Materials (FEM)")
-        .default_open(open.fem)
+    header("Materials (FEM)", "materials", open.fem)
         .show(ui, |ui| materials_ui::materials_ui(app, ui));
-    egui::CollapsingHeader::new("Muscles")
-        .default_open(false)
-        .show(ui, |ui| muscles_ui::muscles_ui(app, ui));
-    egui::CollapsingHeader::new("Expressions")
-        .default_open(open.fem)
+    header("Muscles", "muscles", false).show(ui, |ui| muscles_ui::muscles_ui(app, ui));
+    header("Expressions", "expressions", open.fem)
         .show(ui, |ui| expressions_ui::expressions_ui(app, ui));
-    egui::CollapsingHeader::new("View")
-        .default_open(true)
-        .show(ui, |ui| view_ui::view_ui(app, ui));
+    header("View", "view", true).show(ui, |ui| view_ui::view_ui(app, ui));
 }
+
+/// The side-panel section names a session's `Panels` step takes.
+pub const SECTIONS: [&str; 7] = [
+    "denoise",
+    "landmarks",
+    "registration",
+    "materials",
+    "muscles",
+    "expressions",
+    "view",
+];
 
 /// How a value widget's edit progresses this frame: `(started, finished)`. A drag starts
 /// (undo checkpoint) and finishes (send the value for solving) once each; a click or typed
