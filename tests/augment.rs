@@ -146,6 +146,48 @@ fn augmented_gallery_feeds_the_recognition_protocol() {
     assert_eq!(r.synthetic_gallery_samples, 18 * done.len());
     assert_eq!(r.method, facesynth::recognition::Method::Fisherfaces);
     assert!(r.failures.is_empty(), "{:?}", r.failures);
+    // The gallery scans' feature points come from augment's done.json, not a new detection.
+    assert_eq!(r.cached_landmarks, done.len());
+
+    // The command: report with and without the synthetic gallery, and the CMC plot.
+    let report = out.path().join("report.json");
+    let plot = out.path().join("cmc.png");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .arg("evaluate")
+        .arg("--dataset")
+        .arg(&data)
+        .arg("--augmented")
+        .arg(out.path())
+        .arg("--report")
+        .arg(&report)
+        .arg("--plot")
+        .arg(&plot)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(v["synthetic_gallery_samples"], 18 * done.len());
+    let without = &v["without_augmentation"];
+    assert_eq!(without["method"], "eigenfaces");
+    assert_eq!(without["gallery_samples"], done.len());
+    assert_eq!(without["cmc"].as_array().unwrap().len(), done.len());
+    // A PNG of the documented size, mostly white, with curves and text drawn on it.
+    let img = image::open(&plot).unwrap().to_rgb8();
+    let (w, h) = facesynth::recognition::plot::DEFAULT_SIZE;
+    assert_eq!(img.dimensions(), (w, h));
+    let inked = img.pixels().filter(|p| p.0 != [255, 255, 255]).count();
+    let total = (w * h) as usize;
+    assert!(
+        inked > total / 200 && inked < total / 2,
+        "{inked} of {total} pixels drawn"
+    );
+    // Colour curves (not only black axes and text).
+    assert!(img.pixels().any(|p| p.0[0].abs_diff(p.0[2]) > 100));
 }
 
 #[test]

@@ -7,10 +7,12 @@
 //! * [`cmc`] — Cumulative Match Characteristic, rank-1/rank-5, per probe kind.
 //! * [`pose`] — landmark-free pose normalisation: rotation about the nose tip aligning the
 //!   upper face to a reference range image (ICP along z).
+//! * [`plot`] — CMC curves as PNG (plotters, bitmap backend).
 //! * [`protocol`] — the GavabDB protocol behind `facesynth evaluate`.
 
 pub mod cmc;
 pub mod fisherfaces;
+pub mod plot;
 pub mod pose;
 pub mod protocol;
 pub mod range_image;

@@ -4,7 +4,7 @@
 //! gallery identity by cosine or Euclidean distance, CMC per probe kind.
 //!
 //! **Dataset layout** (GavabDB and `synth_gavab.py` alike): `DIR/<subject>_<scan>.<ext>` with
-//! `<ext>` one of wrl, vrml, obj, ply; the subject is everything before the last `_`
+//! `<ext>` one of wrl, vrml, obj, ply, xyz, txt (point clouds, see `io::xyz`); the subject is everything before the last `_`
 //! (`cara1_frontal1.wrl`, `subj007_risa.wrl`). Other files are ignored.
 //!
 //! **Augmented gallery layout** (what `facesynth augment` must write): one folder per gallery
@@ -37,8 +37,12 @@
 
 use super::cmc::{Rates, rank_of, rates_by_kind};
 use super::fisherfaces::{FisherModel, FisherParams, Method, Metric};
-use super::pose::{PoseParams, align_to_reference, mean_image};
+use super::pose::{
+    PoseParams, PosePoints, ScanPose, align_to_reference, detect_landmarks, mean_image,
+    pose_from_landmarks, refine_pose,
+};
 use super::range_image::{RangeImage, RangeImageParams, range_image};
+use crate::generic_face::GenericFace;
 use crate::{Error, Mesh, Result, io};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -47,18 +51,28 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Where the rotation that makes a scan frontal comes from.
+/// Where the nose tip and the rotation that makes a scan frontal come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum PoseSource {
-    /// The ground-truth pose in the JSON beside the scan (identity if there is none).
+    /// The pipeline's own (works on real scans): [`PoseSource::Landmarks`], then a rigid
+    /// surface refinement of rotation and nose tip against the mean gallery range image
+    /// ([`refine_pose`]; the mean is built in two rounds from the gallery scans only).
     #[default]
+    Auto,
+    /// The scan is denoised, its feature points detected; the nose tip is the detected one
+    /// and the rotation is the registration's rigid fit of the generic face to the points
+    /// ([`super::pose::landmark_frame`]).
+    Landmarks,
+    /// Diagnostic: the ground-truth nose tip and pose in the JSON beside the scan
+    /// (`synth_gavab.py`); a scan without one fails.
     Truth,
-    /// No pose normalisation: the scan frame is taken as frontal.
+    /// No pose normalisation: the scan frame is taken as frontal (nose tip as for `icp`).
     Identity,
     /// Landmark-free: the rotation about the nose tip that aligns the upper face to the mean
     /// gallery range image ([`super::pose`]; the mean is built in two rounds, first from
-    /// unaligned then from aligned gallery scans).
+    /// unaligned then from aligned gallery scans). Nose tip from the ground truth when there is
+    /// one, else detected.
     Icp,
 }
 
@@ -73,8 +87,10 @@ pub struct ProtocolParams {
     pub gallery_scans: Vec<String>,
     /// Scan kinds used as probes. Default `["frontal2", "sonrisa", "risa", "gesto"]`.
     pub probe_scans: Vec<String>,
-    /// Default [`PoseSource::Truth`].
+    /// Default [`PoseSource::Auto`].
     pub pose: PoseSource,
+    /// The feature points the automatic pose is fitted to. Default [`PosePoints::Rigid`].
+    pub pose_points: PosePoints,
     /// Used with [`PoseSource::Icp`].
     pub icp: PoseParams,
 }
@@ -95,7 +111,8 @@ impl Default for ProtocolParams {
             probe_scans: ["frontal2", "sonrisa", "risa", "gesto"]
                 .map(String::from)
                 .to_vec(),
-            pose: PoseSource::Truth,
+            pose: PoseSource::Auto,
+            pose_points: PosePoints::default(),
             icp: PoseParams::default(),
         }
     }
@@ -110,7 +127,7 @@ pub struct ScanFile {
     pub path: PathBuf,
 }
 
-const MESH_EXTENSIONS: [&str; 4] = ["wrl", "vrml", "obj", "ply"];
+const MESH_EXTENSIONS: [&str; 6] = ["wrl", "vrml", "obj", "ply", "xyz", "txt"];
 
 fn is_mesh(path: &Path) -> bool {
     path.extension()
@@ -162,16 +179,11 @@ fn read_json(path: &Path) -> Result<serde_json::Value> {
     serde_json::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))
 }
 
-/// The nose tip of a scan, mm, in the scan frame. The one place recognition gets it from:
-/// today the ground truth beside the scan (`landmarks.nose_tip.xyz_mm`).
-pub fn nose_tip(scan_path: &Path, _mesh: &Mesh) -> Result<DVec3> {
-    // TODO(#7): fall back to automatic landmark detection (src/landmarks.rs) on `_mesh`.
-    let json = truth_json(scan_path).ok_or_else(|| {
-        Error::invalid(
-            scan_path,
-            "no ground-truth JSON beside the scan and automatic nose-tip detection is not wired in yet",
-        )
-    })?;
+/// The ground-truth nose tip of a scan (`landmarks.nose_tip.xyz_mm` in the JSON beside it),
+/// mm, scan frame; an error when there is no ground truth.
+pub fn truth_nose_tip(scan_path: &Path) -> Result<DVec3> {
+    let json = truth_json(scan_path)
+        .ok_or_else(|| Error::invalid(scan_path, "no ground-truth JSON beside the scan"))?;
     let v = read_json(&json)?;
     let xyz = v["landmarks"]["nose_tip"]["xyz_mm"]
         .as_array()
@@ -181,18 +193,21 @@ pub fn nose_tip(scan_path: &Path, _mesh: &Mesh) -> Result<DVec3> {
     Ok(DVec3::new(xyz[0], xyz[1], xyz[2]))
 }
 
-/// The rotation that makes a scan frontal (`face_from_scan`, applied to `p − nose tip`). With
-/// [`PoseSource::Truth`]: the transpose of the ground-truth `pose.rotation` (which maps model
-/// to scan), or identity when the scan has no ground truth. Identity otherwise (for
-/// [`PoseSource::Icp`] it is the starting point of the alignment).
-pub fn face_from_scan(scan_path: &Path, _mesh: &Mesh, source: PoseSource) -> Result<DMat3> {
-    // TODO(#7): use the rotation of the registration to the generic face instead.
-    if source != PoseSource::Truth {
-        return Ok(DMat3::IDENTITY);
+/// The nose tip of a scan, mm, scan frame: the ground truth beside it when there is one,
+/// else the automatic detection on the denoised mesh.
+pub fn nose_tip(scan_path: &Path, mesh: &Mesh) -> Result<DVec3> {
+    if truth_json(scan_path).is_some() {
+        truth_nose_tip(scan_path)
+    } else {
+        Ok(detect_landmarks(mesh)?.get(crate::FeaturePoint::NoseTip))
     }
-    let Some(json) = truth_json(scan_path) else {
-        return Ok(DMat3::IDENTITY);
-    };
+}
+
+/// The ground-truth frontalising rotation (`face_from_scan`): the transpose of `pose.rotation`
+/// in the JSON beside the scan (which maps model to scan); an error without ground truth.
+pub fn truth_face_from_scan(scan_path: &Path) -> Result<DMat3> {
+    let json = truth_json(scan_path)
+        .ok_or_else(|| Error::invalid(scan_path, "no ground-truth JSON beside the scan"))?;
     let v = read_json(&json)?;
     let rows: Option<Vec<[f64; 3]>> = v["pose"]["rotation"].as_array().and_then(|rows| {
         rows.iter()
@@ -209,6 +224,39 @@ pub fn face_from_scan(scan_path: &Path, _mesh: &Mesh, source: PoseSource) -> Res
             Ok(DMat3::from_cols_array_2d(&[rows[0], rows[1], rows[2]]))
         }
         _ => Err(Error::invalid(&json, "pose.rotation is not a 3×3 array")),
+    }
+}
+
+/// The nose tip and frontalising rotation of a scan from `params.pose` (before the ICP
+/// refinement of [`PoseSource::Icp`], which starts from identity). `landmarks`: the scan's
+/// feature points if already detected (augment's cache), used by [`PoseSource::Auto`].
+pub fn scan_pose(
+    scan_path: &Path,
+    mesh: &Mesh,
+    params: &ProtocolParams,
+    generic: &GenericFace,
+    landmarks: Option<&crate::Landmarks>,
+) -> Result<ScanPose> {
+    match params.pose {
+        PoseSource::Auto | PoseSource::Landmarks => {
+            let detected;
+            let points = match landmarks {
+                Some(l) => l,
+                None => {
+                    detected = detect_landmarks(mesh)?;
+                    &detected
+                }
+            };
+            pose_from_landmarks(points, generic, params.pose_points)
+        }
+        PoseSource::Truth => Ok(ScanPose {
+            nose_tip_in_scan: truth_nose_tip(scan_path)?,
+            face_from_scan: truth_face_from_scan(scan_path)?,
+        }),
+        PoseSource::Identity | PoseSource::Icp => Ok(ScanPose {
+            nose_tip_in_scan: nose_tip(scan_path, mesh)?,
+            face_from_scan: DMat3::IDENTITY,
+        }),
     }
 }
 
@@ -242,6 +290,10 @@ pub struct Report {
     pub method_note: String,
     pub metric: Metric,
     pub pose: PoseSource,
+    /// Feature points of the automatic pose ([`PoseSource::Auto`]).
+    pub pose_points: PosePoints,
+    /// Gallery scans whose detected feature points were read from augment's `done.json`.
+    pub cached_landmarks: usize,
     pub rank1: f64,
     pub rank5: f64,
     pub cmc: Vec<f64>,
@@ -272,61 +324,68 @@ pub struct Evaluation {
     pub best: Vec<String>,
 }
 
-/// The nose tip and frontalising rotation of a scan.
-type Frame = (DVec3, DMat3);
-
-/// Builds one sample (range image) from a mesh file; `frame` is the nose tip and pose to use
-/// (those of the gallery scan for a synthetic expression), or `None` to find them for this
-/// scan. Returns the frame used.
+/// Builds one sample (range image) from a mesh file in the pose `start` (the scan's own, or
+/// its gallery scan's for a synthetic expression), first refined against `reference` when
+/// given ([`PoseSource::Auto`]: rotation and nose tip, [`refine_pose`]; [`PoseSource::Icp`]:
+/// rotation only). Returns the pose used.
 fn make_sample(
     path: &Path,
-    frame: Option<Frame>,
+    start: ScanPose,
     subject: &str,
     kind: &str,
     params: &ProtocolParams,
     reference: Option<&RangeImage>,
-) -> std::result::Result<(Sample, Frame), Failure> {
+) -> std::result::Result<(Sample, ScanPose), Failure> {
     let fail = |e: Error| Failure {
         file: path.to_path_buf(),
         reason: e.to_string(),
     };
     let mesh = io::read_mesh(path).map_err(fail)?;
-    let (nose, rot) = match frame {
-        Some(f) => f,
-        None => {
-            let nose = nose_tip(path, &mesh).map_err(fail)?;
-            let rot = face_from_scan(path, &mesh, params.pose).map_err(fail)?;
-            match reference {
-                Some(r) => (nose, align_to_reference(&mesh, nose, rot, r, &params.icp)),
-                None => (nose, rot),
-            }
-        }
+    let pose = match reference {
+        Some(r) if params.pose == PoseSource::Icp => ScanPose {
+            face_from_scan: align_to_reference(
+                &mesh,
+                start.nose_tip_in_scan,
+                start.face_from_scan,
+                r,
+                &params.icp,
+            ),
+            ..start
+        },
+        Some(r) => refine_pose(&mesh, start, r, &params.icp),
+        None => start,
     };
-    let img = range_image(&mesh, nose, rot, &params.range).map_err(fail)?;
+    let img = range_image(
+        &mesh,
+        pose.nose_tip_in_scan,
+        pose.face_from_scan,
+        &params.range,
+    )
+    .map_err(fail)?;
     let sample = Sample {
         subject: subject.to_string(),
         kind: kind.to_string(),
         path: path.to_path_buf(),
         features: img.depth_mm,
     };
-    Ok((sample, (nose, rot)))
+    Ok((sample, pose))
 }
 
-/// The reference for [`PoseSource::Icp`]: the mean range image of the gallery scans, first
-/// unaligned, then (second round) each aligned to the first mean.
-fn icp_reference(scans: &[ScanFile], params: &ProtocolParams) -> Result<RangeImage> {
-    let gallery: Vec<&ScanFile> = scans
-        .iter()
-        .filter(|s| params.gallery_scans.contains(&s.scan))
-        .collect();
+/// The reference of the surface alignment ([`PoseSource::Auto`], [`PoseSource::Icp`]): the
+/// mean range image of the gallery scans in their starting poses, then (second round) of the
+/// same scans aligned to that first mean. Only gallery scans are used.
+fn alignment_reference(
+    gallery: &[(&ScanFile, ScanPose)],
+    params: &ProtocolParams,
+) -> Result<RangeImage> {
     let mut reference: Option<RangeImage> = None;
     for _round in 0..2 {
         let images: Vec<RangeImage> = gallery
             .par_iter()
-            .filter_map(|s| {
+            .filter_map(|(s, start)| {
                 make_sample(
                     &s.path,
-                    None,
+                    *start,
                     &s.subject,
                     &s.scan,
                     params,
@@ -366,13 +425,47 @@ fn blank_image(p: &RangeImageParams) -> RangeImage {
     }
 }
 
-/// Runs the protocol on `dataset`, with the synthetic gallery expressions of `augmented` if
-/// given.
-pub fn evaluate(
+/// The range images of a dataset (and of its synthetic gallery expressions), before any
+/// training: [`score`] them with or without the synthetic ones.
+#[derive(Debug, Clone)]
+pub struct Samples {
+    /// Real gallery scans.
+    pub gallery: Vec<Sample>,
+    /// Synthetic expressions of the gallery scans (empty without an augmented folder).
+    pub synthetic: Vec<Sample>,
+    pub probes: Vec<Sample>,
+    pub failures: Vec<Failure>,
+    /// Gallery scans whose feature points came from augment's `done.json` (not re-detected).
+    pub cached_landmarks: usize,
+    /// Wall time of building them, s.
+    pub seconds: f64,
+}
+
+/// Augment's detected feature points of a gallery scan (`AUG/<stem>/done.json`, field
+/// `landmarks`), when that file is for this very scan file.
+fn cached_landmarks(augmented: &Path, scan: &ScanFile) -> Option<crate::Landmarks> {
+    let stem = scan.path.file_stem()?.to_str()?;
+    let done = augmented.join(stem).join(crate::pipeline::DONE_MARKER);
+    let v = read_json(&done).ok()?;
+    let same_file = v["scan"]
+        .as_str()
+        .and_then(|p| std::fs::canonicalize(p).ok())
+        .zip(std::fs::canonicalize(&scan.path).ok())
+        .is_some_and(|(a, b)| a == b);
+    if !same_file {
+        return None;
+    }
+    let map: BTreeMap<String, [f64; 3]> = serde_json::from_value(v["landmarks"].clone()).ok()?;
+    crate::Landmarks::from_map(&map).ok()
+}
+
+/// Builds the range images of `dataset` and, if given, of the synthetic expressions in
+/// `augmented` (resampled with their gallery scan's nose tip and pose).
+pub fn collect_samples(
     dataset: &Path,
     augmented: Option<&Path>,
     params: &ProtocolParams,
-) -> Result<Evaluation> {
+) -> Result<Samples> {
     let t0 = Instant::now();
     let scans: Vec<ScanFile> = list_scans(dataset)?
         .into_iter()
@@ -387,16 +480,52 @@ pub fn evaluate(
             ),
         ));
     }
+    let generic = crate::generic_face::build();
+    let cached: Vec<Option<crate::Landmarks>> = scans
+        .iter()
+        .map(|s| {
+            augmented
+                .filter(|_| {
+                    matches!(params.pose, PoseSource::Auto | PoseSource::Landmarks)
+                        && params.gallery_scans.contains(&s.scan)
+                })
+                .and_then(|aug| cached_landmarks(aug, s))
+        })
+        .collect();
+    // 1. Each scan's starting pose (feature points, ground truth, …).
+    let starts: Vec<std::result::Result<ScanPose, Failure>> = scans
+        .par_iter()
+        .zip(&cached)
+        .map(|(s, lm)| {
+            let fail = |e: Error| Failure {
+                file: s.path.clone(),
+                reason: e.to_string(),
+            };
+            let mesh = io::read_mesh(&s.path).map_err(fail)?;
+            scan_pose(&s.path, &mesh, params, &generic, lm.as_ref()).map_err(fail)
+        })
+        .collect();
+    // 2. The surface-alignment reference from the gallery scans.
     let reference = match params.pose {
-        PoseSource::Icp => Some(icp_reference(&scans, params)?),
-        _ => None,
+        PoseSource::Auto | PoseSource::Icp => {
+            let gallery: Vec<(&ScanFile, ScanPose)> = scans
+                .iter()
+                .zip(&starts)
+                .filter(|(s, _)| params.gallery_scans.contains(&s.scan))
+                .filter_map(|(s, p)| p.as_ref().ok().map(|p| (s, *p)))
+                .collect();
+            Some(alignment_reference(&gallery, params)?)
+        }
+        PoseSource::Landmarks | PoseSource::Truth | PoseSource::Identity => None,
     };
+    // 3. Every scan aligned and resampled.
     let results: Vec<_> = scans
         .par_iter()
-        .map(|s| {
+        .zip(starts)
+        .map(|(s, start)| {
             make_sample(
                 &s.path,
-                None,
+                start?,
                 &s.subject,
                 &s.scan,
                 params,
@@ -408,7 +537,7 @@ pub fn evaluate(
     let mut gallery = Vec::new();
     let mut probes = Vec::new();
     // Synthetic expressions of each gallery scan: (mesh, frame, subject).
-    let mut synthetic_jobs: Vec<(PathBuf, Frame, String)> = Vec::new();
+    let mut synthetic_jobs: Vec<(PathBuf, ScanPose, String)> = Vec::new();
     for (s, r) in scans.iter().zip(results) {
         match r {
             Ok((sample, frame)) if params.gallery_scans.contains(&s.scan) => {
@@ -428,23 +557,59 @@ pub fn evaluate(
             Err(f) => failures.push(f),
         }
     }
-    let synthetic: Vec<_> = synthetic_jobs
+    let results: Vec<_> = synthetic_jobs
         .par_iter()
-        .map(|(p, frame, subject)| make_sample(p, Some(*frame), subject, "synthetic", params, None))
+        .map(|(p, frame, subject)| make_sample(p, *frame, subject, "synthetic", params, None))
         .collect();
-    for r in synthetic {
+    let mut synthetic = Vec::new();
+    for r in results {
         match r {
-            Ok((sample, _)) => gallery.push(sample),
+            Ok((sample, _)) => synthetic.push(sample),
             Err(f) => failures.push(f),
         }
     }
-    let t_images = t0.elapsed().as_secs_f64();
+    Ok(Samples {
+        gallery,
+        synthetic,
+        probes,
+        failures,
+        cached_landmarks: cached.iter().filter(|c| c.is_some()).count(),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Runs the protocol on `dataset`, with the synthetic gallery expressions of `augmented` if
+/// given.
+pub fn evaluate(
+    dataset: &Path,
+    augmented: Option<&Path>,
+    params: &ProtocolParams,
+) -> Result<Evaluation> {
+    let samples = collect_samples(dataset, augmented, params)?;
+    score(&samples, true, params).map_err(|e| e.in_file(dataset))
+}
+
+/// Trains on the gallery (with the synthetic expressions when `with_synthetic`) and matches
+/// the probes.
+pub fn score(
+    samples: &Samples,
+    with_synthetic: bool,
+    params: &ProtocolParams,
+) -> Result<Evaluation> {
+    let t0 = Instant::now();
+    let mut failures = samples.failures.clone();
+    let mut gallery = samples.gallery.clone();
+    if with_synthetic {
+        gallery.extend(samples.synthetic.iter().cloned());
+    }
+    let probes = samples.probes.clone();
+    let t_images = samples.seconds;
     let mut identities: Vec<String> = gallery.iter().map(|s| s.subject.clone()).collect();
     identities.sort();
     identities.dedup();
     if identities.len() < 2 {
-        return Err(Error::invalid(
-            dataset,
+        return Err(Error::algorithm(
+            "evaluate",
             format!(
                 "{} gallery identities; need at least 2 ({} scans failed{})",
                 identities.len(),
@@ -510,7 +675,7 @@ pub fn evaluate(
     seconds.insert("range_images".to_string(), t_images);
     seconds.insert("train".to_string(), t_train);
     seconds.insert("match".to_string(), t_match);
-    seconds.insert("total".to_string(), t0.elapsed().as_secs_f64());
+    seconds.insert("total".to_string(), t_images + t0.elapsed().as_secs_f64());
     let report = Report {
         subjects: n,
         probes: matched.len(),
@@ -518,6 +683,8 @@ pub fn evaluate(
         method_note,
         metric: params.metric,
         pose: params.pose,
+        pose_points: params.pose_points,
+        cached_landmarks: samples.cached_landmarks,
         rank1: all.rank1,
         rank5: all.rank5,
         cmc: all.cmc,
