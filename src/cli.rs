@@ -168,6 +168,19 @@ pub enum Command {
         /// File-name stem suffix of the neutral gallery scans.
         #[arg(long, default_value = "_frontal1")]
         suffix: String,
+        /// Comma-separated multiples of each preset's activations to write (1 = as defined).
+        #[arg(long, value_delimiter = ',', default_value = "1")]
+        intensities: Vec<f64>,
+        /// Comma-separated jaw-opening angles (degrees) of extra open-mouth laughs (the laugh
+        /// base preset plus a jaw rotation); empty for none.
+        #[arg(long, value_delimiter = ',', num_args = 0..)]
+        jaw_open_deg: Vec<f64>,
+        /// The preset the open-mouth laughs start from.
+        #[arg(long, default_value = "broad_smile")]
+        laugh_base: String,
+        /// Skip writing the FEM face's own surfaces (`face/*.obj`); recognition does not read them.
+        #[arg(long)]
+        no_face_meshes: bool,
     },
     /// Print timings as JSON.
     Bench {
@@ -495,7 +508,22 @@ pub fn run(cli: Cli) -> Result<()> {
             out,
             expressions,
             suffix,
-        }) => print_json(&augment(&gallery, &out, expressions, suffix)?),
+            intensities,
+            jaw_open_deg,
+            laugh_base,
+            no_face_meshes,
+        }) => {
+            let params = crate::pipeline::AugmentParams {
+                gallery_suffix: suffix,
+                expressions,
+                intensities,
+                jaw_open_deg,
+                laugh_base,
+                write_face_meshes: !no_face_meshes,
+                ..Default::default()
+            };
+            print_json(&augment(&gallery, &out, &params)?)
+        }
         Some(Command::Bench {
             what: BenchWhat::Fem,
         }) => print_json(&fem::bench_fem()?),
@@ -780,16 +808,10 @@ fn cmc_curves(
 pub fn augment(
     gallery: &Path,
     out: &Path,
-    expressions: String,
-    suffix: String,
+    params: &crate::pipeline::AugmentParams,
 ) -> Result<serde_json::Value> {
-    let params = crate::pipeline::AugmentParams {
-        gallery_suffix: suffix,
-        expressions,
-        ..Default::default()
-    };
     let start = std::time::Instant::now();
-    let (done, failed) = crate::pipeline::augment(gallery, out, &params, &|k, n, line| {
+    let (done, failed) = crate::pipeline::augment(gallery, out, params, &|k, n, line| {
         eprintln!("augment [{k}/{n}] {line}");
     })?;
     let seconds = start.elapsed().as_secs_f64();

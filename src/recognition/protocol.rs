@@ -439,6 +439,10 @@ pub struct Samples {
     pub cached_landmarks: usize,
     /// Wall time of building them, s.
     pub seconds: f64,
+    /// Wall time per stage, s: `start_poses` (read + denoise + feature points of every scan),
+    /// `reference` (the alignment reference), `scan_images` (refine + resample every scan),
+    /// `synthetic_images` (read + resample the synthetic expressions).
+    pub stage_seconds: BTreeMap<String, f64>,
 }
 
 /// Augment's detected feature points of a gallery scan (`AUG/<stem>/done.json`, field
@@ -492,6 +496,12 @@ pub fn collect_samples(
                 .and_then(|aug| cached_landmarks(aug, s))
         })
         .collect();
+    let mut stage_seconds = BTreeMap::new();
+    let mut lap = Instant::now();
+    let mut stage = |name: &str| {
+        stage_seconds.insert(name.to_string(), lap.elapsed().as_secs_f64());
+        lap = Instant::now();
+    };
     // 1. Each scan's starting pose (feature points, ground truth, …).
     let starts: Vec<std::result::Result<ScanPose, Failure>> = scans
         .par_iter()
@@ -505,6 +515,7 @@ pub fn collect_samples(
             scan_pose(&s.path, &mesh, params, &generic, lm.as_ref()).map_err(fail)
         })
         .collect();
+    stage("start_poses");
     // 2. The surface-alignment reference from the gallery scans.
     let reference = match params.pose {
         PoseSource::Auto | PoseSource::Icp => {
@@ -518,6 +529,7 @@ pub fn collect_samples(
         }
         PoseSource::Landmarks | PoseSource::Truth | PoseSource::Identity => None,
     };
+    stage("reference");
     // 3. Every scan aligned and resampled.
     let results: Vec<_> = scans
         .par_iter()
@@ -557,6 +569,7 @@ pub fn collect_samples(
             Err(f) => failures.push(f),
         }
     }
+    stage("scan_images");
     let results: Vec<_> = synthetic_jobs
         .par_iter()
         .map(|(p, frame, subject)| make_sample(p, *frame, subject, "synthetic", params, None))
@@ -568,6 +581,7 @@ pub fn collect_samples(
             Err(f) => failures.push(f),
         }
     }
+    stage("synthetic_images");
     Ok(Samples {
         gallery,
         synthetic,
@@ -575,6 +589,7 @@ pub fn collect_samples(
         failures,
         cached_landmarks: cached.iter().filter(|c| c.is_some()).count(),
         seconds: t0.elapsed().as_secs_f64(),
+        stage_seconds,
     })
 }
 
@@ -673,6 +688,9 @@ pub fn score(
     let synthetic = gallery.iter().filter(|s| s.kind == "synthetic").count();
     let mut seconds = BTreeMap::new();
     seconds.insert("range_images".to_string(), t_images);
+    for (k, v) in &samples.stage_seconds {
+        seconds.insert(format!("range_images.{k}"), *v);
+    }
     seconds.insert("train".to_string(), t_train);
     seconds.insert("match".to_string(), t_match);
     seconds.insert("total".to_string(), t_images + t0.elapsed().as_secs_f64());
@@ -719,6 +737,7 @@ impl Evaluation {
             serde_json::json!({
                 "subject": samples.iter().map(|s| s.subject.clone()).collect::<Vec<_>>(),
                 "kind": samples.iter().map(|s| s.kind.clone()).collect::<Vec<_>>(),
+                "path": samples.iter().map(|s| s.path.clone()).collect::<Vec<_>>(),
                 "x": samples
                     .iter()
                     .map(|s| s.features.iter().map(|&v| v as f32).collect::<Vec<f32>>())
