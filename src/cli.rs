@@ -153,8 +153,9 @@ pub enum Command {
     /// gesto; prints the report JSON (rank-1, rank-5, CMC, per probe kind, failures).
     Evaluate(EvaluateArgs),
     /// Gallery augmentation (paper section 3): for every neutral gallery scan, denoise →
-    /// landmarks → register → FEM → 18 synthetic expressions, written as OUT/<scan>/<name>.obj
-    /// (scan frame, mm) with `neutral.obj`; resumable, failures listed, not fatal.
+    /// landmarks → register → FEM → 18 synthetic expressions carried onto the scan, written as
+    /// OUT/<scan>/<name>.ply (scan frame, mm; the FEM face's own surfaces in OUT/<scan>/face/);
+    /// resumable, failures listed, not fatal.
     Augment {
         /// Folder of scans; the gallery scans are those whose name ends with --suffix.
         #[arg(long)]
@@ -237,7 +238,8 @@ pub struct EvaluateArgs {
     /// Folder of `<subject>_<scan>.<ext>` scans (wrl, vrml, obj, ply, xyz, txt).
     #[arg(long)]
     pub dataset: PathBuf,
-    /// Synthetic gallery expressions: `DIR/<subject>_frontal1/*.obj`, in the scan's frame.
+    /// Synthetic gallery expressions (`facesynth augment`'s output): `DIR/<subject>_frontal1/*.ply`
+    /// (or .obj), in the scan's frame. The report then also gives the figures without them.
     #[arg(long)]
     pub augmented: Option<PathBuf>,
     /// Distance between projected faces.

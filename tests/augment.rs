@@ -215,3 +215,49 @@ fn unfold_repairs_a_turned_over_quad_and_leaves_a_clean_surface_alone() {
     // Far from the fold nothing moved.
     assert_eq!(fixed.positions_mm[0], clean.positions_mm[0]);
 }
+
+#[test]
+fn open_jaw_turns_only_the_lower_face_down_and_back() {
+    // A vertical plane facing +z through the nose tip, in a scan frame turned by 90° about y
+    // (the face frame is recovered through the pose).
+    let mut face = plane(41, 3.0);
+    for p in &mut face.positions_mm {
+        *p = DVec3::new(p.x - 60.0, p.y - 90.0, 0.0);
+    }
+    let scan_from_face = glam::DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2);
+    let nose = DVec3::new(5.0, 2.0, -1200.0);
+    let scan = Mesh::from_faces(
+        face.positions_mm
+            .iter()
+            .map(|&p| nose + scan_from_face * p)
+            .collect(),
+        face.faces.iter().map(|f| f.to_vec()).collect::<Vec<_>>(),
+    );
+    let pose = facesynth::recognition::pose::ScanPose {
+        nose_tip_in_scan: nose,
+        face_from_scan: scan_from_face.transpose(),
+    };
+    let jaw = pipeline::JawParams::default();
+    let mouth = (0.0, -35.0, 25.0);
+    let out = pipeline::open_jaw(&scan, &pose, mouth, 8.0, &jaw);
+    for (f, q) in face.positions_mm.iter().zip(&out.positions_mm) {
+        let moved = pose.face_from_scan * (*q - nose) - *f;
+        if f.y >= mouth.1 + jaw.blend_above_mm {
+            assert!(moved.length() < 1e-9, "{f} moved {moved}");
+        }
+        if f.y <= -70.0 {
+            // The chin turns about the hinge: down and back, by about angle × radius.
+            assert!(moved.y < -1.0 && moved.z < -1.0, "{f}: {moved}");
+            let radius = (*f - DVec3::new(f.x, jaw.hinge_y_mm, jaw.hinge_z_mm)).length();
+            assert!((moved.length() - 8f64.to_radians() * radius).abs() < 0.05 * radius);
+        }
+    }
+    // The cavity: the middle of the lip band, between the corners, is pushed back.
+    let mid = face
+        .positions_mm
+        .iter()
+        .position(|p| p.x.abs() < 1.6 && (p.y - (mouth.1 - 4.0)).abs() < 1.6)
+        .unwrap();
+    let moved = pose.face_from_scan * (out.positions_mm[mid] - nose) - face.positions_mm[mid];
+    assert!(moved.z < -10.0, "{moved}");
+}
