@@ -157,8 +157,9 @@ pub enum Command {
     /// gesto; prints the report JSON (rank-1, rank-5, CMC, per probe kind, failures).
     Evaluate(EvaluateArgs),
     /// Gallery augmentation (paper section 3): for every neutral gallery scan, denoise →
-    /// landmarks → register → FEM → 18 synthetic expressions, written as OUT/<scan>/<name>.obj
-    /// (scan frame, mm) with `neutral.obj`; resumable, failures listed, not fatal.
+    /// landmarks → register → FEM → 18 synthetic expressions carried onto the scan, written as
+    /// OUT/<scan>/<name>.ply (scan frame, mm; the FEM face's own surfaces in OUT/<scan>/face/);
+    /// resumable, failures listed, not fatal.
     Augment {
         /// Folder of scans; the gallery scans are those whose name ends with --suffix.
         #[arg(long)]
@@ -172,6 +173,19 @@ pub enum Command {
         /// File-name stem suffix of the neutral gallery scans.
         #[arg(long, default_value = "_frontal1")]
         suffix: String,
+        /// Comma-separated multiples of each preset's activations to write (1 = as defined).
+        #[arg(long, value_delimiter = ',', default_value = "1")]
+        intensities: Vec<f64>,
+        /// Comma-separated jaw-opening angles (degrees) of extra open-mouth laughs (the laugh
+        /// base preset plus a jaw rotation); empty for none.
+        #[arg(long, value_delimiter = ',', num_args = 0..)]
+        jaw_open_deg: Vec<f64>,
+        /// The preset the open-mouth laughs start from.
+        #[arg(long, default_value = "broad_smile")]
+        laugh_base: String,
+        /// Skip writing the FEM face's own surfaces (`face/*.obj`); recognition does not read them.
+        #[arg(long)]
+        no_face_meshes: bool,
     },
     /// Print timings as JSON.
     Bench {
@@ -225,11 +239,11 @@ pub enum Command {
 /// Options of `facesynth evaluate`.
 #[derive(Debug, Clone, Args)]
 pub struct EvaluateArgs {
-    /// Folder of `<subject>_<scan>.wrl` scans (with `<subject>_<scan>.json` ground truth for
-    /// the nose tip and pose).
+    /// Folder of `<subject>_<scan>.<ext>` scans (wrl, vrml, obj, ply, xyz, txt).
     #[arg(long)]
     pub dataset: PathBuf,
-    /// Synthetic gallery expressions: `DIR/<subject>_frontal1/*.obj`, in the scan's frame.
+    /// Synthetic gallery expressions (`facesynth augment`'s output): `DIR/<subject>_frontal1/*.ply`
+    /// (or .obj), in the scan's frame. The report then also gives the figures without them.
     #[arg(long)]
     pub augmented: Option<PathBuf>,
     /// Distance between projected faces.
@@ -238,9 +252,18 @@ pub struct EvaluateArgs {
     /// Also write the report JSON to this file.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Pose normalisation before resampling.
-    #[arg(long, value_enum, default_value_t = crate::recognition::PoseSource::Truth)]
+    /// Nose tip and pose normalisation before resampling: `auto` = detected feature points
+    /// and the registration's rigid fit to the generic face; `truth` = the synthetic ground
+    /// truth beside each scan (diagnostic).
+    #[arg(long, value_enum, default_value_t = crate::recognition::PoseSource::Auto)]
     pub pose: crate::recognition::PoseSource,
+    /// Feature points the automatic pose is fitted to.
+    #[arg(long, value_enum, default_value_t = crate::recognition::pose::PosePoints::Rigid)]
+    pub pose_points: crate::recognition::pose::PosePoints,
+    /// Write a PNG of the CMC curves; with --augmented the run is scored both without and
+    /// with the synthetic gallery expressions, and both curves are drawn.
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
     /// Comma-separated scan kinds forming the gallery.
     #[arg(long, default_value = "frontal1")]
     pub gallery_scans: String,
@@ -512,7 +535,22 @@ pub fn run(cli: Cli) -> Result<()> {
             out,
             expressions,
             suffix,
-        }) => print_json(&augment(&gallery, &out, expressions, suffix)?),
+            intensities,
+            jaw_open_deg,
+            laugh_base,
+            no_face_meshes,
+        }) => {
+            let params = crate::pipeline::AugmentParams {
+                gallery_suffix: suffix,
+                expressions,
+                intensities,
+                jaw_open_deg,
+                laugh_base,
+                write_face_meshes: !no_face_meshes,
+                ..Default::default()
+            };
+            print_json(&augment(&gallery, &out, &params)?)
+        }
         Some(Command::Bench {
             what: BenchWhat::Fem,
         }) => print_json(&fem::bench_fem()?),
@@ -692,6 +730,7 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
     let params = ProtocolParams {
         metric: args.metric,
         pose: args.pose,
+        pose_points: args.pose_points,
         gallery_scans: list(&args.gallery_scans),
         probe_scans: list(&args.probe_scans),
         fisher: crate::recognition::FisherParams {
@@ -701,8 +740,43 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         },
         ..ProtocolParams::default()
     };
-    let eval = crate::recognition::evaluate(&args.dataset, args.augmented.as_deref(), &params)?;
-    let value = serde_json::to_value(&eval.report)?;
+    let samples = crate::recognition::protocol::collect_samples(
+        &args.dataset,
+        args.augmented.as_deref(),
+        &params,
+    )?;
+    let eval = crate::recognition::protocol::score(&samples, true, &params)?;
+    let mut value = serde_json::to_value(&eval.report)?;
+    // With synthetic expressions, also the same probes against the plain neutral gallery.
+    let without = match args.augmented {
+        Some(_) => Some(crate::recognition::protocol::score(
+            &samples, false, &params,
+        )?),
+        None => None,
+    };
+    if let Some(w) = &without {
+        let r = &w.report;
+        value["without_augmentation"] = json!({
+            "method": r.method, "method_note": r.method_note,
+            "rank1": r.rank1, "rank5": r.rank5, "cmc": r.cmc,
+            "by_probe_kind": r.by_probe_kind, "gallery_samples": r.gallery_samples,
+        });
+    }
+    if let Some(path) = &args.plot {
+        let curves = cmc_curves(&eval.report, without.as_ref().map(|w| &w.report));
+        let title = format!(
+            "CMC, {} subjects, {} probes ({:?}, pose {:?})",
+            eval.report.subjects, eval.report.probes, params.metric, params.pose
+        )
+        .to_lowercase()
+        .replacen("cmc", "CMC", 1);
+        crate::recognition::plot::write_cmc_png(
+            path,
+            &title,
+            &curves,
+            crate::recognition::plot::DEFAULT_SIZE,
+        )?;
+    }
     if let Some(path) = &args.report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
@@ -712,20 +786,59 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
     Ok(value)
 }
 
+/// The curves of `evaluate --plot`: all probes (bold) and each probe kind, solid for the
+/// run scored (`with`: augmented when there are synthetic samples), dashed for `without`.
+fn cmc_curves(
+    with: &crate::recognition::Report,
+    without: Option<&crate::recognition::Report>,
+) -> Vec<crate::recognition::plot::Curve> {
+    use crate::recognition::plot::Curve;
+    let augmented = with.synthetic_gallery_samples > 0;
+    let mut out = Vec::new();
+    let mut add = |report: &crate::recognition::Report, tag: &str, dashed: bool| {
+        out.push(Curve {
+            label: format!(
+                "all {} probes{tag}: rank-1 {:.1} %",
+                report.probes,
+                100.0 * report.rank1
+            ),
+            cmc: report.cmc.clone(),
+            colour: 0,
+            dashed,
+            bold: true,
+        });
+        for (k, (kind, rates)) in report.by_probe_kind.iter().enumerate() {
+            out.push(Curve {
+                label: format!(
+                    "{kind} ({}){tag}: {:.1} %",
+                    rates.probes,
+                    100.0 * rates.rank1
+                ),
+                cmc: rates.cmc.clone(),
+                colour: k + 1,
+                dashed,
+                bold: false,
+            });
+        }
+    };
+    match without {
+        Some(w) => {
+            add(w, ", without aug.", true);
+            add(with, ", with aug.", false);
+        }
+        None => add(with, if augmented { ", with aug." } else { "" }, false),
+    }
+    out
+}
+
 /// `facesynth augment`: the batch with a progress line per scan on stderr.
 pub fn augment(
     gallery: &Path,
     out: &Path,
-    expressions: String,
-    suffix: String,
+    params: &crate::pipeline::AugmentParams,
 ) -> Result<serde_json::Value> {
-    let params = crate::pipeline::AugmentParams {
-        gallery_suffix: suffix,
-        expressions,
-        ..Default::default()
-    };
     let start = std::time::Instant::now();
-    let (done, failed) = crate::pipeline::augment(gallery, out, &params, &|k, n, line| {
+    let (done, failed) = crate::pipeline::augment(gallery, out, params, &|k, n, line| {
         eprintln!("augment [{k}/{n}] {line}");
     })?;
     let seconds = start.elapsed().as_secs_f64();

@@ -116,6 +116,101 @@ pub struct AugmentParams {
     /// Reach of the expression transfer onto the scan, mm (default 8: about three of the
     /// generic face's quads; see [`transfer_expression`]).
     pub transfer_radius_mm: f64,
+    /// Each preset is also written at these multiples of its activations (default `[1]`:
+    /// the presets as they are). A multiple other than 1 is written as `<name>_x<m>.ply`.
+    pub intensities: Vec<f64>,
+    /// Open-mouth laughs: for each angle (degrees), the scan carrying [`Self::laugh_base`]
+    /// with the jaw opened by that angle ([`open_jaw`]), written as `laugh_jaw<deg>.ply`.
+    /// Default empty (the paper's 18 expressions only).
+    pub jaw_open_deg: Vec<f64>,
+    /// The FEM preset the laughs start from (default `broad_smile`).
+    pub laugh_base: String,
+    /// Where the jaw rotates ([`open_jaw`]).
+    pub jaw: JawParams,
+    /// Also write the FEM face's own surfaces (`face/*.obj`, for looking at). Default true.
+    pub write_face_meshes: bool,
+}
+
+/// The jaw's hinge and the lip line blend of [`open_jaw`], in the face frame (nose tip at the
+/// origin, frontal, mm).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct JawParams {
+    /// Hinge axis (along x) height relative to the nose tip, mm. Default −10 (about the
+    /// temporomandibular joints, at the level of the nose base).
+    pub hinge_y_mm: f64,
+    /// Hinge axis depth relative to the nose tip, mm. Default −95 (in front of the ears).
+    pub hinge_z_mm: f64,
+    /// The rotation fades in from this far above the mouth corners' line … (default 2 mm)
+    pub blend_above_mm: f64,
+    /// … to this far below it (default 10 mm): the lips stretch over the opening.
+    pub blend_below_mm: f64,
+    /// Depth of the mouth cavity pushed into the stretched lip band, mm per degree of jaw
+    /// opening (default 2.5: synth_gavab's laughs show a ~20–25 mm deep opening between the
+    /// lips for ~5–9°). 0 gives stretched, closed lips.
+    pub cavity_mm_per_deg: f64,
+}
+
+impl Default for JawParams {
+    fn default() -> Self {
+        JawParams {
+            hinge_y_mm: -10.0,
+            hinge_z_mm: -95.0,
+            blend_above_mm: 2.0,
+            blend_below_mm: 10.0,
+            cavity_mm_per_deg: 2.5,
+        }
+    }
+}
+
+/// Opens the jaw of a (neutral or expressive) scan: every vertex below the mouth turns about
+/// the hinge axis (x in the face frame of `pose`) by `angle_deg`, the chin going down and
+/// back; the angle fades in smoothly (smoothstep) across the lip line, from
+/// `blend_above_mm` above `mouth_y_mm` (the mouth corners' height in the face frame) to
+/// `blend_below_mm` below it. The upper face stays put. The stretched band between the mouth
+/// corners is pushed back into a cavity (depth `cavity_mm_per_deg × angle` at its middle,
+/// fading to 0 at the band's edges and at the corners), as the open mouth shows the inside of
+/// the mouth to the scanner. `mouth` is the mouth corners' centre (x, y) and half width in the
+/// face frame, mm. A crude stand-in for the jaw
+/// rotation the muscle model lacks (the generic face has closed lips): measured on
+/// synth_gavab's laughs (seed 8, model frame), the chin moves 8 mm down and 9 mm back,
+/// about 5° about such an axis.
+pub fn open_jaw(
+    scan: &Mesh,
+    pose: &crate::recognition::pose::ScanPose,
+    mouth: (f64, f64, f64),
+    angle_deg: f64,
+    jaw: &JawParams,
+) -> Mesh {
+    let (mouth_x_mm, mouth_y_mm, half_width_mm) = mouth;
+    let half_width_mm = half_width_mm.max(1.0);
+    use glam::DVec3;
+    let r = pose.face_from_scan;
+    let hinge = DVec3::new(0.0, jaw.hinge_y_mm, jaw.hinge_z_mm);
+    let top = mouth_y_mm + jaw.blend_above_mm;
+    let span = (jaw.blend_above_mm + jaw.blend_below_mm).max(1e-6);
+    let positions = scan
+        .positions_mm
+        .iter()
+        .map(|&p| {
+            let f = r * (p - pose.nose_tip_in_scan);
+            let t = ((top - f.y) / span).clamp(0.0, 1.0);
+            let w = t * t * (3.0 - 2.0 * t);
+            if w == 0.0 {
+                return p;
+            }
+            let mut turned =
+                hinge + glam::DMat3::from_rotation_x((angle_deg * w).to_radians()) * (f - hinge);
+            // The cavity: a bump across the band, between the corners.
+            let across = ((half_width_mm - (f.x - mouth_x_mm).abs()) / (0.5 * half_width_mm))
+                .clamp(0.0, 1.0);
+            let across = across * across * (3.0 - 2.0 * across);
+            turned.z -= jaw.cavity_mm_per_deg * angle_deg * 4.0 * t * (1.0 - t) * across;
+            pose.nose_tip_in_scan + r.transpose() * turned
+        })
+        .collect();
+    let mut out = Mesh::new(positions, scan.faces.clone());
+    out.update_normals();
+    out
 }
 
 impl Default for AugmentParams {
@@ -125,6 +220,11 @@ impl Default for AugmentParams {
             expressions: "all".into(),
             fem: crate::fem::FemParams::default(),
             transfer_radius_mm: 8.0,
+            intensities: vec![1.0],
+            jaw_open_deg: Vec::new(),
+            laugh_base: "broad_smile".into(),
+            jaw: JawParams::default(),
+            write_face_meshes: true,
         }
     }
 }
@@ -166,25 +266,44 @@ pub fn transfer_expression(
     displacement_mm: &[glam::DVec3],
     radius_mm: f64,
 ) -> Mesh {
-    use glam::DVec3;
-    let cell = radius_mm.max(0.5);
-    let key = |p: DVec3| {
-        (
-            (p.x / cell).floor() as i64,
-            (p.y / cell).floor() as i64,
-            (p.z / cell).floor() as i64,
-        )
-    };
-    let mut grid: std::collections::HashMap<(i64, i64, i64), Vec<u32>> = Default::default();
-    for (i, &p) in face_rest.positions_mm.iter().enumerate() {
-        grid.entry(key(p)).or_default().push(i as u32);
-    }
-    let positions = scan
-        .positions_mm
-        .iter()
-        .map(|&p| {
+    TransferWeights::new(scan, face_rest, radius_mm).apply(scan, displacement_mm)
+}
+
+/// The weights of [`transfer_expression`] for one scan and rest face, computed once and
+/// applied to any number of displacement fields (augment carries 18+ expressions onto the same
+/// scan; the neighbour search is the costly part).
+#[derive(Debug, Clone)]
+pub struct TransferWeights {
+    /// Per scan vertex: start of its entries in `face_vertex` / `weight`.
+    offsets: Vec<usize>,
+    face_vertex: Vec<u32>,
+    /// Normalised weight × fade.
+    weight: Vec<f64>,
+}
+
+impl TransferWeights {
+    pub fn new(scan: &Mesh, face_rest: &Mesh, radius_mm: f64) -> TransferWeights {
+        use glam::DVec3;
+        let cell = radius_mm.max(0.5);
+        let key = |p: DVec3| {
+            (
+                (p.x / cell).floor() as i64,
+                (p.y / cell).floor() as i64,
+                (p.z / cell).floor() as i64,
+            )
+        };
+        let mut grid: std::collections::HashMap<(i64, i64, i64), Vec<u32>> = Default::default();
+        for (i, &p) in face_rest.positions_mm.iter().enumerate() {
+            grid.entry(key(p)).or_default().push(i as u32);
+        }
+        let mut offsets = Vec::with_capacity(scan.vertex_count() + 1);
+        let mut face_vertex = Vec::new();
+        let mut weight = Vec::new();
+        offsets.push(0);
+        for &p in &scan.positions_mm {
             let (cx, cy, cz) = key(p);
-            let (mut sum, mut weight, mut nearest) = (DVec3::ZERO, 0.0, f64::INFINITY);
+            let start = face_vertex.len();
+            let (mut total, mut nearest) = (0.0, f64::INFINITY);
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
@@ -195,24 +314,52 @@ pub fn transfer_expression(
                             let d = face_rest.positions_mm[i as usize].distance(p);
                             if d < radius_mm {
                                 let w = 1.0 / (d * d + 0.25);
-                                sum += displacement_mm[i as usize] * w;
-                                weight += w;
+                                face_vertex.push(i);
+                                weight.push(w);
+                                total += w;
                                 nearest = nearest.min(d);
                             }
                         }
                     }
                 }
             }
-            if weight == 0.0 {
-                return p;
+            if total > 0.0 {
+                let fade = ((radius_mm - nearest) / (radius_mm * 0.5)).clamp(0.0, 1.0);
+                for w in &mut weight[start..] {
+                    *w *= fade / total;
+                }
             }
-            let fade = ((radius_mm - nearest) / (radius_mm * 0.5)).clamp(0.0, 1.0);
-            p + sum / weight * fade
-        })
-        .collect();
-    let mut out = Mesh::new(positions, scan.faces.clone());
-    out.update_normals();
-    out
+            offsets.push(face_vertex.len());
+        }
+        TransferWeights {
+            offsets,
+            face_vertex,
+            weight,
+        }
+    }
+
+    /// The scan moved by `displacement_mm` (one per rest-face vertex); normals recomputed.
+    /// `scan` must be the mesh the weights were made for.
+    pub fn apply(&self, scan: &Mesh, displacement_mm: &[glam::DVec3]) -> Mesh {
+        let positions = scan
+            .positions_mm
+            .iter()
+            .enumerate()
+            .map(|(v, &p)| {
+                let range = self.offsets[v]..self.offsets[v + 1];
+                p + self.face_vertex[range.clone()]
+                    .iter()
+                    .zip(&self.weight[range])
+                    .map(|(&i, &w)| {
+                        displacement_mm.get(i as usize).copied().unwrap_or_default() * w
+                    })
+                    .sum::<glam::DVec3>()
+            })
+            .collect();
+        let mut out = Mesh::new(positions, scan.faces.clone());
+        out.update_normals();
+        out
+    }
 }
 
 /// Smooths away the folds a registration can leave in the surface (a quad turned over where
@@ -264,24 +411,97 @@ pub fn unfold_surface(surface: &Mesh) -> (Mesh, usize) {
 /// or fold of the scan that even local thinning cannot follow).
 const THICKNESS_FALLBACK: [f64; 3] = [1.0, 0.6, 0.35];
 
-/// The FEM model of a registered face, with the layers made thinner as a last resort when they
-/// invert; returns the factor used (1 = the requested thicknesses).
+/// Local surface repairs [`fem_model`] tries when every thickness still inverts an element.
+pub const SURFACE_REPAIRS: usize = 16;
+
+/// The FEM model of a registered face. When the layers invert, they are made thinner (the
+/// factors of `THICKNESS_FALLBACK`); when even the thinnest layers invert, the registered surface is
+/// smoothed locally around the offending element (its corners' 2-ring, [`smooth_patch`]) and
+/// everything is tried again, up to [`SURFACE_REPAIRS`] times. Why: the elements that still
+/// invert sit on a surface quad that the registration has all but collapsed (a projection
+/// across a hole's rim or a scan border; measured on seed 8: 8 of 61 gallery scans, minimum
+/// Jacobians of −1e−2 … −1e−4 mm³ even at 0.35 of the thickness), which no thickness fixes.
+/// Returns the model (its `surface` is the repaired one), the factor used (1 = the requested
+/// thicknesses) and the number of surface repairs.
 pub fn fem_model(
     face: &GenericFace,
     params: &crate::fem::FemParams,
-) -> Result<(crate::fem::FaceModel, f64)> {
-    let mut last = None;
-    for factor in THICKNESS_FALLBACK {
-        let mut p = *params;
-        p.layers.skin_thickness_mm *= factor;
-        p.layers.fat_thickness_mm *= factor;
-        match crate::fem::FaceModel::from_generic(face, &p) {
-            Ok(model) => return Ok((model, factor)),
-            Err(e @ Error::Fem(crate::FemError::InvertedElement { .. })) => last = Some(e),
-            Err(e) => return Err(e),
+) -> Result<(crate::fem::FaceModel, f64, usize)> {
+    let mut surface = face.mesh.clone();
+    let mut repairs = 0;
+    loop {
+        let face = GenericFace {
+            mesh: surface.clone(),
+            feature_vertices: face.feature_vertices,
+        };
+        let mut inverted = None;
+        for factor in THICKNESS_FALLBACK {
+            let mut p = *params;
+            p.layers.skin_thickness_mm *= factor;
+            p.layers.fat_thickness_mm *= factor;
+            match crate::fem::FaceModel::from_generic(&face, &p) {
+                Ok(model) => return Ok((model, factor, repairs)),
+                Err(e @ Error::Fem(crate::FemError::InvertedElement { .. })) => inverted = Some(e),
+                Err(e) => return Err(e),
+            }
+        }
+        let Some(Error::Fem(crate::FemError::InvertedElement { element, .. })) = inverted else {
+            unreachable!("at least one thickness was tried");
+        };
+        if repairs == SURFACE_REPAIRS {
+            return Err(inverted.unwrap());
+        }
+        // The element's surface corners: its nodes modulo the surface vertex count (the
+        // extrusion numbers nodes layer by layer, the element order does not depend on the
+        // smoothing or thickness).
+        let hex = crate::fem::layers::extrude(&surface, &params.layers)?;
+        let n = surface.vertex_count();
+        let Some(nodes) = hex.elements.get(element) else {
+            return Err(inverted.unwrap());
+        };
+        let corners: Vec<usize> = nodes.iter().map(|&v| v as usize % n).collect();
+        surface = smooth_patch(&surface, &corners, 2, 5);
+        repairs += 1;
+    }
+}
+
+/// Umbrella (Laplacian, λ = ½) smoothing of the vertices within `rings` edge hops of `seeds`,
+/// `iterations` times; all other vertices stay put. Normals are recomputed.
+pub fn smooth_patch(surface: &Mesh, seeds: &[usize], rings: usize, iterations: usize) -> Mesh {
+    let topology = crate::mesh::Topology::new(surface);
+    let n = surface.vertex_count();
+    let mut inside = vec![false; n];
+    let mut front: Vec<usize> = seeds.iter().copied().filter(|&v| v < n).collect();
+    for &v in &front {
+        inside[v] = true;
+    }
+    for _ in 0..rings {
+        let mut next = Vec::new();
+        for &v in &front {
+            for &u in topology.neighbours(v) {
+                if !inside[u as usize] {
+                    inside[u as usize] = true;
+                    next.push(u as usize);
+                }
+            }
+        }
+        front = next;
+    }
+    let patch: Vec<usize> = (0..n).filter(|&v| inside[v]).collect();
+    let mut mesh = surface.clone();
+    for _ in 0..iterations {
+        let old = mesh.positions_mm.clone();
+        for &v in &patch {
+            let ring = topology.neighbours(v);
+            if !ring.is_empty() {
+                let mean: glam::DVec3 =
+                    ring.iter().map(|&u| old[u as usize]).sum::<glam::DVec3>() / ring.len() as f64;
+                mesh.positions_mm[v] = 0.5 * (old[v] + mean);
+            }
         }
     }
-    Err(last.expect("at least one factor was tried"))
+    mesh.update_normals();
+    mesh
 }
 
 /// The marker a finished subject's folder gets last: a folder without it is unfinished and is
@@ -322,7 +542,13 @@ pub fn augment_scan(
         feature_vertices: generic.feature_vertices,
     };
     let in_file = |e: Error| e.in_file(scan);
-    let (mut model, thickness_factor) = fem_model(&face, &params.fem).map_err(in_file)?;
+    let (mut model, thickness_factor, surface_repairs) =
+        fem_model(&face, &params.fem).map_err(in_file)?;
+    // The surface the FEM was built on (locally repaired where the layers inverted).
+    let face = GenericFace {
+        mesh: model.surface.clone(),
+        feature_vertices: face.feature_vertices,
+    };
     model.factor().map_err(in_file)?;
     model
         .set_muscles(&crate::fem::muscles::MuscleSet::builtin())
@@ -331,34 +557,73 @@ pub fn augment_scan(
     // The gallery samples (the scan with each expression) go in `out_dir`, the FEM face's own
     // surfaces in `out_dir/face/` (for looking at; recognition reads only the top folder).
     let face_dir = out_dir.join("face");
-    std::fs::create_dir_all(&face_dir).map_err(|e| Error::io(&face_dir, e))?;
-    io::write_mesh(&face_dir.join("neutral.obj"), &face.mesh)?;
+    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    if params.write_face_meshes {
+        std::fs::create_dir_all(&face_dir).map_err(|e| Error::io(&face_dir, e))?;
+        io::write_mesh(&face_dir.join("neutral.obj"), &face.mesh)?;
+    }
     let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
     let mut figures = serde_json::Map::new();
     let mut u = Vec::new();
+    let mut written = 0;
+    let transfer = TransferWeights::new(&prepared.denoised, &face.mesh, params.transfer_radius_mm);
+    let intensity_tag = |m: f64| {
+        if m == 1.0 {
+            String::new()
+        } else {
+            format!("_x{m}")
+        }
+    };
     for e in &chosen {
-        let a = e.activations_for(&names)?;
+        let base = e.activations_for(&names)?;
+        for &m in &params.intensities {
+            let a: Vec<f64> = base.iter().map(|x| x * m).collect();
+            model.combine_surface(&a, &mut u)?;
+            let name = format!("{}{}", e.name, intensity_tag(m));
+            if params.write_face_meshes {
+                let mesh = model.surface.displaced(&u);
+                io::write_mesh(&face_dir.join(format!("{name}.obj")), &mesh)?;
+            }
+            let on_scan = transfer.apply(&prepared.denoised, &u);
+            io::write_mesh(&out_dir.join(format!("{name}.ply")), &on_scan)?;
+            written += 1;
+            let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
+            figures.insert(name, serde_json::json!({ "max_displacement_mm": max }));
+        }
+    }
+    if !params.jaw_open_deg.is_empty() {
+        let laugh = presets.select(&params.laugh_base)?;
+        let a = laugh
+            .first()
+            .ok_or_else(|| Error::algorithm("augment", "no laugh base preset"))?
+            .activations_for(&names)?;
         model.combine_surface(&a, &mut u)?;
-        let mesh = model.surface.displaced(&u);
-        io::write_mesh(&face_dir.join(format!("{}.obj", e.name)), &mesh)?;
-        let on_scan = transfer_expression(
-            &prepared.denoised,
-            &face.mesh,
-            &u,
-            params.transfer_radius_mm,
+        let smiling = transfer.apply(&prepared.denoised, &u);
+        let pose = crate::recognition::pose::pose_from_landmarks(
+            &prepared.landmarks,
+            generic,
+            crate::recognition::pose::PosePoints::Rigid,
+        )
+        .map_err(in_file)?;
+        let corner = |p| pose.face_from_scan * (prepared.landmarks.get(p) - pose.nose_tip_in_scan);
+        let left = corner(crate::FeaturePoint::MouthCornerLeft);
+        let right = corner(crate::FeaturePoint::MouthCornerRight);
+        let mouth = (
+            (left.x + right.x) / 2.0,
+            (left.y + right.y) / 2.0,
+            (left.x - right.x).abs() / 2.0,
         );
-        io::write_mesh(&out_dir.join(format!("{}.ply", e.name)), &on_scan)?;
-        let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
-        figures.insert(
-            e.name.clone(),
-            serde_json::json!({ "max_displacement_mm": max }),
-        );
+        for &deg in &params.jaw_open_deg {
+            let mesh = open_jaw(&smiling, &pose, mouth, deg, &params.jaw);
+            io::write_mesh(&out_dir.join(format!("laugh_jaw{deg}.ply")), &mesh)?;
+            written += 1;
+        }
     }
     let result = AugmentedScan {
         scan: scan.to_path_buf(),
         dir: out_dir.to_path_buf(),
         resumed: false,
-        expressions: chosen.len(),
+        expressions: written,
         landmark_warnings: prepared.detection.as_ref().map_or(0, |d| d.warnings.len()),
         matched_fraction: prepared.registration.matched_fraction(),
         millis: start.elapsed().as_secs_f64() * 1e3,
@@ -366,6 +631,7 @@ pub fn augment_scan(
     let mut done = serde_json::to_value(&result).unwrap_or_default();
     done["layer_thickness_factor"] = serde_json::json!(thickness_factor);
     done["unfolded_vertices"] = serde_json::json!(unfolded);
+    done["surface_repairs"] = serde_json::json!(surface_repairs);
     done["expressions_mm"] = serde_json::Value::Object(figures);
     done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
     io::write_text_atomic(

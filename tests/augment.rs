@@ -146,6 +146,48 @@ fn augmented_gallery_feeds_the_recognition_protocol() {
     assert_eq!(r.synthetic_gallery_samples, 18 * done.len());
     assert_eq!(r.method, facesynth::recognition::Method::Fisherfaces);
     assert!(r.failures.is_empty(), "{:?}", r.failures);
+    // The gallery scans' feature points come from augment's done.json, not a new detection.
+    assert_eq!(r.cached_landmarks, done.len());
+
+    // The command: report with and without the synthetic gallery, and the CMC plot.
+    let report = out.path().join("report.json");
+    let plot = out.path().join("cmc.png");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .arg("evaluate")
+        .arg("--dataset")
+        .arg(&data)
+        .arg("--augmented")
+        .arg(out.path())
+        .arg("--report")
+        .arg(&report)
+        .arg("--plot")
+        .arg(&plot)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(v["synthetic_gallery_samples"], 18 * done.len());
+    let without = &v["without_augmentation"];
+    assert_eq!(without["method"], "eigenfaces");
+    assert_eq!(without["gallery_samples"], done.len());
+    assert_eq!(without["cmc"].as_array().unwrap().len(), done.len());
+    // A PNG of the documented size, mostly white, with curves and text drawn on it.
+    let img = image::open(&plot).unwrap().to_rgb8();
+    let (w, h) = facesynth::recognition::plot::DEFAULT_SIZE;
+    assert_eq!(img.dimensions(), (w, h));
+    let inked = img.pixels().filter(|p| p.0 != [255, 255, 255]).count();
+    let total = (w * h) as usize;
+    assert!(
+        inked > total / 200 && inked < total / 2,
+        "{inked} of {total} pixels drawn"
+    );
+    // Colour curves (not only black axes and text).
+    assert!(img.pixels().any(|p| p.0[0].abs_diff(p.0[2]) > 100));
 }
 
 #[test]
@@ -172,4 +214,50 @@ fn unfold_repairs_a_turned_over_quad_and_leaves_a_clean_surface_alone() {
     }
     // Far from the fold nothing moved.
     assert_eq!(fixed.positions_mm[0], clean.positions_mm[0]);
+}
+
+#[test]
+fn open_jaw_turns_only_the_lower_face_down_and_back() {
+    // A vertical plane facing +z through the nose tip, in a scan frame turned by 90° about y
+    // (the face frame is recovered through the pose).
+    let mut face = plane(41, 3.0);
+    for p in &mut face.positions_mm {
+        *p = DVec3::new(p.x - 60.0, p.y - 90.0, 0.0);
+    }
+    let scan_from_face = glam::DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2);
+    let nose = DVec3::new(5.0, 2.0, -1200.0);
+    let scan = Mesh::from_faces(
+        face.positions_mm
+            .iter()
+            .map(|&p| nose + scan_from_face * p)
+            .collect(),
+        face.faces.iter().map(|f| f.to_vec()).collect::<Vec<_>>(),
+    );
+    let pose = facesynth::recognition::pose::ScanPose {
+        nose_tip_in_scan: nose,
+        face_from_scan: scan_from_face.transpose(),
+    };
+    let jaw = pipeline::JawParams::default();
+    let mouth = (0.0, -35.0, 25.0);
+    let out = pipeline::open_jaw(&scan, &pose, mouth, 8.0, &jaw);
+    for (f, q) in face.positions_mm.iter().zip(&out.positions_mm) {
+        let moved = pose.face_from_scan * (*q - nose) - *f;
+        if f.y >= mouth.1 + jaw.blend_above_mm {
+            assert!(moved.length() < 1e-9, "{f} moved {moved}");
+        }
+        if f.y <= -70.0 {
+            // The chin turns about the hinge: down and back, by about angle × radius.
+            assert!(moved.y < -1.0 && moved.z < -1.0, "{f}: {moved}");
+            let radius = (*f - DVec3::new(f.x, jaw.hinge_y_mm, jaw.hinge_z_mm)).length();
+            assert!((moved.length() - 8f64.to_radians() * radius).abs() < 0.05 * radius);
+        }
+    }
+    // The cavity: the middle of the lip band, between the corners, is pushed back.
+    let mid = face
+        .positions_mm
+        .iter()
+        .position(|p| p.x.abs() < 1.6 && (p.y - (mouth.1 - 4.0)).abs() < 1.6)
+        .unwrap();
+    let moved = pose.face_from_scan * (out.positions_mm[mid] - nose) - face.positions_mm[mid];
+    assert!(moved.z < -10.0, "{moved}");
 }

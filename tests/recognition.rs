@@ -15,15 +15,29 @@ fn check_cmc(cmc: &[f64], n: usize) {
     assert_eq!(*cmc.last().unwrap(), 1.0);
 }
 
+/// The scans without their ground-truth JSON, as real scans come.
+fn without_ground_truth(dir: &Path) -> tempfile::TempDir {
+    let copy = tempfile::tempdir().unwrap();
+    for s in protocol::list_scans(dir).unwrap() {
+        std::fs::copy(&s.path, copy.path().join(s.path.file_name().unwrap())).unwrap();
+    }
+    copy
+}
+
 #[test]
-fn neutral_gallery_recognises_neutral_probes_with_eigenfaces() {
+fn neutral_gallery_recognises_neutral_probes_with_eigenfaces_and_automatic_pose() {
     let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    // No ground truth: nose tip and pose come from the pipeline (PoseSource::Auto).
+    let copy = without_ground_truth(&dir);
+    let params = ProtocolParams::default();
+    assert_eq!(params.pose, PoseSource::Auto);
+    let samples = protocol::collect_samples(copy.path(), None, &params).unwrap();
     for metric in [Metric::Cosine, Metric::Euclidean] {
         let params = ProtocolParams {
             metric,
             ..ProtocolParams::default()
         };
-        let eval = evaluate(&dir, None, &params).unwrap();
+        let eval = protocol::score(&samples, true, &params).unwrap();
         let r = &eval.report;
         assert!(r.failures.is_empty(), "{:?}", r.failures);
         assert_eq!(r.subjects, SUBJECTS);
@@ -103,7 +117,7 @@ fn missing_ground_truth_is_a_failure_not_a_crash() {
         }
     }
     let params = ProtocolParams {
-        pose: PoseSource::Identity,
+        pose: PoseSource::Truth,
         probe_scans: vec!["frontal2".into()],
         ..ProtocolParams::default()
     };

@@ -219,9 +219,12 @@ impl WorkerState {
                 mesh: surface,
                 feature_vertices,
             };
-            let (mut model, factor) = crate::pipeline::fem_model(&face, &params).map_err(e)?;
-            if unfolded > 0 || factor < 1.0 {
-                note = format!("; {unfolded} folded vertices smoothed, layers × {factor}");
+            let (mut model, factor, repairs) =
+                crate::pipeline::fem_model(&face, &params).map_err(e)?;
+            if unfolded > 0 || factor < 1.0 || repairs > 0 {
+                note = format!(
+                    "; {unfolded} folded vertices smoothed, layers × {factor}, {repairs} local surface repairs"
+                );
             }
             model.factor().map_err(e)?;
             model.set_muscles(&muscles).map_err(e)?;

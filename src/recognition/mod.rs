@@ -5,12 +5,15 @@
 //!   elliptic mask, hole filling.
 //! * [`fisherfaces`] — PCA to M − c, LDA to c − 1 (eqs. 1–9); Eigenfaces fallback; distances.
 //! * [`cmc`] — Cumulative Match Characteristic, rank-1/rank-5, per probe kind.
-//! * [`pose`] — landmark-free pose normalisation: rotation about the nose tip aligning the
+//! * [`pose`] — pose normalisation: the registration's rigid fit to detected feature points,
+//!   a 6-DOF surface refinement, and the older landmark-free rotation about the nose tip aligning the
 //!   upper face to a reference range image (ICP along z).
+//! * [`plot`] — CMC curves as PNG (plotters, bitmap backend).
 //! * [`protocol`] — the GavabDB protocol behind `facesynth evaluate`.
 
 pub mod cmc;
 pub mod fisherfaces;
+pub mod plot;
 pub mod pose;
 pub mod protocol;
 pub mod range_image;
