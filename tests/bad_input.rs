@@ -513,7 +513,7 @@ fn limits_are_flags_on_every_command() {
     std::fs::write(&p, real_wrl()).unwrap();
     let run = |flags: &[&str]| {
         let mut args: Vec<&std::ffi::OsStr> = vec!["info".as_ref(), p.as_os_str()];
-        args.extend(flags.iter().map(|f| std::ffi::OsStr::new(f)));
+        args.extend(flags.iter().map(std::ffi::OsStr::new));
         facesynth(&args)
     };
     assert!(run(&[]).status.success());
