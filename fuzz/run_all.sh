@@ -8,14 +8,17 @@ cd "$here"
 secs="${1:-600}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(vrml obj ply xyz presets_ron landmarks_json sidecar_json)
+[ ${#targets[@]} -gt 0 ] || targets=(vrml obj ply xyz presets_ron landmarks_json sidecar_json mesh_pipeline)
 mkdir -p logs
 for t in "${targets[@]}"; do
   mkdir -p "artifacts/$t"
+  # mesh_pipeline's seeds are whole (small) faces.
+  max_len=65536
+  [ "$t" = mesh_pipeline ] && max_len=262144
   # -max_len keeps mutations on the structure (headers, first records) rather than on the
   # bulk of 1 MB scans; -rss_limit_mb catches allocations out of proportion to the input.
   cargo +nightly fuzz run -O "$t" "corpus/$t" -- \
-    -max_total_time="$secs" -max_len=65536 -rss_limit_mb=2048 -timeout=10 \
+    -max_total_time="$secs" -max_len="$max_len" -rss_limit_mb=2048 -timeout=10 \
     -print_final_stats=1 -artifact_prefix="artifacts/$t/" > "logs/$t.log" 2>&1
   rc=$?
   last="$(grep -E '^#[0-9]+' "logs/$t.log" | tail -1)"

@@ -8,7 +8,7 @@ shared="${SHARED:-$repo/../shared}"
 gavab="$shared/data/gavabdb"
 c="$here/corpus"
 rm -rf "$c"
-mkdir -p "$c"/{vrml,obj,ply,xyz,presets_ron,landmarks_json,sidecar_json}
+mkdir -p "$c"/{vrml,obj,ply,xyz,presets_ron,landmarks_json,sidecar_json,mesh_pipeline}
 
 # Real scans. libFuzzer cuts inputs to -max_len, so big scans serve as prefixes.
 cp "$gavab"/*.wrl "$c/vrml/" 2>/dev/null || true
@@ -67,4 +67,17 @@ if python3 "$shared/bench/synth_gavab.py" --out "$tmp2" --subjects 1 --seed 3 >/
   done
 fi
 rm -rf "$tmp2"
+
+# mesh_pipeline: small synthetic faces (3 mm grid, ~3.3k vertices) as OBJ, so the fuzzer
+# starts from meshes the landmark detector and the registration get through, plus the OBJ
+# seeds above. Run it with -max_len=262144 (the faces are ~190 KB).
+tmp3="$(mktemp -d)"
+if [ -x "$bin" ] && python3 "$shared/bench/synth_gavab.py" --out "$tmp3" --subjects 1 --seed 2 \
+  --grid-mm 3 --jobs 1 >/dev/null 2>&1; then
+  for f in "$tmp3"/*.wrl; do
+    "$bin" convert "$f" "$c/mesh_pipeline/$(basename "$f" .wrl).obj" >/dev/null 2>&1 || true
+  done
+fi
+rm -rf "$tmp3"
+cp "$c/obj/quad.obj" "$c/mesh_pipeline/"
 for d in "$c"/*; do echo "$(basename "$d"): $(ls "$d" | wc -l) files"; done
