@@ -66,10 +66,11 @@ impl MeshFormat {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReadLimits {
     /// Largest file accepted, bytes. Default 1 GiB (the largest GavabDB scan is < 1 MB; a
-    /// 1M-vertex binary PLY is ~45 MB, as ASCII ~60 MB).
+    /// 1M-vertex binary PLY of quads is ~29 MB, a 1.4M-vertex VRML scan ~85 MB).
     pub max_file_bytes: u64,
-    /// Largest vertex (or point) count accepted. Default 20 million (peak memory is about
-    /// 1 KB per vertex through the landmark pipeline, so ~20 GB at the limit).
+    /// Largest vertex (or point) count accepted. Default 20 million (peak memory through the
+    /// landmark pipeline is ~400 bytes per vertex, measured on 1M-vertex meshes: ~8 GB at the
+    /// limit).
     pub max_vertices: usize,
     /// Largest |coordinate| accepted, mm. Default 1e6 (1 km): a face scan spans < 1 m, so a
     /// larger value is a corrupt number or a file in other units, and would wreck every
