@@ -174,14 +174,14 @@ impl Error {
         Error::Syntax {
             path: path.to_path_buf(),
             line,
-            message: message.into(),
+            message: one_line(message.into()),
         }
     }
 
     pub fn invalid(path: &Path, message: impl Into<String>) -> Self {
         Error::InvalidData {
             path: path.to_path_buf(),
-            message: message.into(),
+            message: one_line(message.into()),
         }
     }
 
@@ -190,5 +190,15 @@ impl Error {
             step,
             message: message.into(),
         }
+    }
+}
+
+/// Messages quote the file's own text (a name, a token), which may hold line breaks: they are
+/// shown escaped so every error stays one line (found by fuzzing the preset parser).
+fn one_line(message: String) -> String {
+    if message.contains(['\n', '\r']) {
+        message.replace('\n', "\\n").replace('\r', "\\r")
+    } else {
+        message
     }
 }

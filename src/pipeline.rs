@@ -50,11 +50,8 @@ pub fn read_landmarks(path: &Path) -> Result<Landmarks> {
 
 /// Parses a landmark file's text (`path` only names it in errors).
 pub fn parse_landmarks(text: &str, path: &Path) -> Result<Landmarks> {
-    serde_json::from_str(text).map_err(|e| Error::Syntax {
-        path: path.to_path_buf(),
-        line: e.line(),
-        message: format!("not a landmark file: {e}"),
-    })
+    serde_json::from_str(text)
+        .map_err(|e| Error::syntax(path, e.line(), format!("not a landmark file: {e}")))
 }
 
 /// The scan's feature points: read from `given`, else detected on the (denoised) mesh.
