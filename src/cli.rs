@@ -21,6 +21,34 @@ pub struct Cli {
     pub command: Option<Command>,
     #[command(flatten)]
     pub view: ViewArgs,
+    #[command(flatten)]
+    pub limits: LimitArgs,
+}
+
+/// What the mesh readers accept, for every command (see `io::ReadLimits`).
+#[derive(Debug, Clone, Default, Args)]
+pub struct LimitArgs {
+    /// Largest mesh file read, MiB [default: 1024]. Larger files are refused before reading.
+    #[arg(long, global = true, value_name = "MB")]
+    pub max_file_mb: Option<u64>,
+    /// Largest vertex (point) count read [default: 20000000]. Peak memory through the landmark
+    /// pipeline is about 400 bytes per vertex (measured on 1M-vertex meshes).
+    #[arg(long, global = true, value_name = "N")]
+    pub max_vertices: Option<usize>,
+}
+
+impl LimitArgs {
+    /// The reader limits these flags give (defaults where not given).
+    pub fn read_limits(&self) -> io::ReadLimits {
+        let d = io::ReadLimits::DEFAULT;
+        io::ReadLimits {
+            max_file_bytes: self
+                .max_file_mb
+                .map_or(d.max_file_bytes, |mb| mb.saturating_mul(1 << 20)),
+            max_vertices: self.max_vertices.unwrap_or(d.max_vertices),
+            ..d
+        }
+    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -380,7 +408,26 @@ pub enum Overlay {
 }
 
 /// Runs a parsed command line.
+/// The one line `main` prints for an error: the context chain joined by `: `, leaving out a
+/// cause whose text the line already holds (the library's errors include their source's
+/// message, so `{:#}` would print it twice), with line breaks flattened.
+pub fn error_line(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line.replace(['\n', '\r'], " ")
+}
+
 pub fn run(cli: Cli) -> Result<()> {
+    io::set_default_limits(cli.limits.read_limits());
     match cli.command {
         Some(Command::Info { file }) => print_json(&info(&file)?),
         Some(Command::Convert { input, output }) => {

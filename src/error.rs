@@ -65,6 +65,52 @@ impl Error {
     }
 }
 
+/// The step of the pipeline an error comes from: what the batch failure lists (augment's
+/// `failures.json`) and the editor show beside the message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    /// The file could not be opened, read or written.
+    Io,
+    /// The file is not a usable mesh (syntax, counts, indices, limits).
+    Input,
+    Denoise,
+    Curvature,
+    /// Feature points (e.g. no nose tip found).
+    Landmarks,
+    /// Registration of the generic face (e.g. degenerate or diverged fit).
+    Registration,
+    /// The finite-element model (e.g. singular system, inverted elements).
+    Fem,
+    /// Range images and Fisherfaces.
+    Recognition,
+}
+
+impl Error {
+    /// Which step failed (the innermost error decides).
+    pub fn stage(&self) -> Stage {
+        match self {
+            Error::Io { .. } => Stage::Io,
+            Error::Syntax { .. } | Error::InvalidData { .. } | Error::UnknownFormat { .. } => {
+                Stage::Input
+            }
+            Error::InvalidMesh(_) => Stage::Input,
+            Error::Fem(_) => Stage::Fem,
+            Error::InFile { source, .. } => source.stage(),
+            Error::Algorithm { step, .. } => {
+                let first = step.split(':').next().unwrap_or(step);
+                match first {
+                    "denoise" => Stage::Denoise,
+                    "curvature" => Stage::Curvature,
+                    "landmarks" => Stage::Landmarks,
+                    "registration" | "horn" | "warp" => Stage::Registration,
+                    _ => Stage::Recognition, // "range image", "pose", "fisherfaces"
+                }
+            }
+        }
+    }
+}
+
 impl From<FemError> for Error {
     fn from(e: FemError) -> Self {
         Error::Fem(e)
@@ -128,14 +174,14 @@ impl Error {
         Error::Syntax {
             path: path.to_path_buf(),
             line,
-            message: message.into(),
+            message: one_line(message.into()),
         }
     }
 
     pub fn invalid(path: &Path, message: impl Into<String>) -> Self {
         Error::InvalidData {
             path: path.to_path_buf(),
-            message: message.into(),
+            message: one_line(message.into()),
         }
     }
 
@@ -144,5 +190,15 @@ impl Error {
             step,
             message: message.into(),
         }
+    }
+}
+
+/// Messages quote the file's own text (a name, a token), which may hold line breaks: they are
+/// shown escaped so every error stays one line (found by fuzzing the preset parser).
+fn one_line(message: String) -> String {
+    if message.contains(['\n', '\r']) {
+        message.replace('\n', "\\n").replace('\r', "\\r")
+    } else {
+        message
     }
 }

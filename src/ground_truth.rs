@@ -55,8 +55,12 @@ pub struct TruthSpikes {
 
 impl ScanTruth {
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))
+        Self::parse(&crate::io::read_text_file(path)?, path)
+    }
+
+    /// Parses a sidecar's text (`path` only names it in errors).
+    pub fn parse(text: &str, path: &Path) -> Result<Self> {
+        serde_json::from_str(text).map_err(|e| Error::invalid(path, e.to_string()))
     }
 
     /// The ground-truth position of one of our feature points, if the generator provides it

@@ -6,7 +6,7 @@ fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             // One line: the library's errors already name the file and the problem.
-            eprintln!("facesynth: error: {e:#}");
+            eprintln!("facesynth: error: {}", facesynth::cli::error_line(&e));
             std::process::ExitCode::FAILURE
         }
     }

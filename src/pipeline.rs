@@ -45,12 +45,13 @@ pub struct PreparedScan {
 
 /// Reads a landmark file (JSON: name → [x, y, z] mm, all 13 names).
 pub fn read_landmarks(path: &Path) -> Result<Landmarks> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::Syntax {
-        path: path.to_path_buf(),
-        line: e.line(),
-        message: format!("not a landmark file: {e}"),
-    })
+    parse_landmarks(&io::read_text_file(path)?, path)
+}
+
+/// Parses a landmark file's text (`path` only names it in errors).
+pub fn parse_landmarks(text: &str, path: &Path) -> Result<Landmarks> {
+    serde_json::from_str(text)
+        .map_err(|e| Error::syntax(path, e.line(), format!("not a landmark file: {e}")))
 }
 
 /// The scan's feature points: read from `given`, else detected on the (denoised) mesh.
@@ -248,6 +249,9 @@ pub struct AugmentedScan {
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct AugmentFailure {
     pub scan: std::path::PathBuf,
+    /// The step that failed (`landmarks` for "no nose tip found", `fem` for a singular
+    /// system, `input` for a bad file …).
+    pub stage: crate::error::Stage,
     pub reason: String,
 }
 
@@ -508,6 +512,21 @@ pub fn smooth_patch(surface: &Mesh, seeds: &[usize], rings: usize, iterations: u
 /// redone (its files may be from a killed run).
 pub const DONE_MARKER: &str = "done.json";
 
+/// Removes the temporary files [`io::write_atomic`] leaves when a process is killed mid-write
+/// (`.<name>.tmp-<pid>`). Best effort: a file that cannot be removed is left.
+fn remove_stale_temp_files(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with('.') && name.contains(".tmp-") {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// The gallery scans of `dir` (sorted).
 pub fn gallery_scans(dir: &Path, suffix: &str) -> Result<Vec<std::path::PathBuf>> {
     let mut out: Vec<_> = std::fs::read_dir(dir)
@@ -558,8 +577,11 @@ pub fn augment_scan(
     // surfaces in `out_dir/face/` (for looking at; recognition reads only the top folder).
     let face_dir = out_dir.join("face");
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    // A killed run may have left temporary files; nothing reads them, but they would pile up.
+    remove_stale_temp_files(out_dir);
     if params.write_face_meshes {
         std::fs::create_dir_all(&face_dir).map_err(|e| Error::io(&face_dir, e))?;
+        remove_stale_temp_files(&face_dir);
         io::write_mesh(&face_dir.join("neutral.obj"), &face.mesh)?;
     }
     let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
@@ -686,6 +708,7 @@ pub fn augment(
             } else {
                 augment_scan(scan, &dir, &generic, params).map_err(|e| AugmentFailure {
                     scan: scan.clone(),
+                    stage: e.stage(),
                     reason: e.to_string(),
                 })
             };

@@ -1159,8 +1159,19 @@ impl SurfaceIndex {
         let triangles = mesh.triangles();
         let positions = mesh.positions_mm.clone();
         let (lo, hi) = mesh.bbox_mm().unwrap_or((DVec3::ZERO, DVec3::ZERO));
-        let cell = cell_mm.max(1e-3);
-        let dims = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize + 1).min(1024));
+        // Cells grow until the grid holds at most a few per triangle: a scan with one vertex
+        // far away would otherwise ask for a billion cells.
+        let budget = (4 * triangles.len()).max(1 << 12) as f64;
+        let mut cell = cell_mm.max(1e-3);
+        let extent = hi - lo;
+        while (0..3)
+            .map(|k| (extent[k] / cell).floor() + 1.0)
+            .product::<f64>()
+            > budget
+        {
+            cell *= 2.0;
+        }
+        let dims = [0, 1, 2].map(|k| ((extent[k] / cell).floor() as usize + 1).min(1024));
         let cell_of = |p: DVec3| -> [usize; 3] {
             [0, 1, 2].map(|k| (((p[k] - lo[k]) / cell).floor().max(0.0) as usize).min(dims[k] - 1))
         };
@@ -1223,6 +1234,19 @@ impl SurfaceIndex {
         if self.triangles.is_empty() {
             return None;
         }
+        // Nothing within reach of the grid: answer at once instead of widening the search to
+        // `max_mm` over empty cells (a registration far off the scan made this slow; found by
+        // fuzzing the pipeline).
+        let grid_hi = self.min
+            + DVec3::new(
+                self.dims[0] as f64,
+                self.dims[1] as f64,
+                self.dims[2] as f64,
+            ) * self.cell;
+        let outside = (self.min - p).max(p - grid_hi).max(DVec3::ZERO);
+        if !(outside.length() <= max_mm) {
+            return None;
+        }
         let mut r = self.cell;
         loop {
             let r_eff = r.min(max_mm);
@@ -1251,12 +1275,14 @@ impl SurfaceIndex {
                     }
                 }
             }
+            // Once the box holds the whole grid, a wider one finds nothing more.
+            let whole = (0..3).all(|k| lo[k] <= 0.0 && hi[k] >= self.dims[k] as f64 - 1.0);
             if let Some((d2, q)) = best
-                && d2.sqrt() <= r_eff
+                && (d2.sqrt() <= r_eff || whole)
             {
-                return Some((d2.sqrt(), q));
+                return (d2.sqrt() <= max_mm).then_some((d2.sqrt(), q));
             }
-            if r_eff >= max_mm {
+            if r_eff >= max_mm || whole {
                 return None;
             }
             r *= 2.0;

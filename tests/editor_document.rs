@@ -400,3 +400,138 @@ fn a_session_nudge_snaps_the_point_to_the_scan_near_the_offset() {
     let target = before + DVec3::new(0.0, 4.0, 0.0);
     assert!((*to - target).length() < 3.0, "{to} vs {target}");
 }
+
+#[test]
+fn edits_make_the_document_dirty_and_saving_each_part_makes_it_clean() {
+    use facesynth::app::document::Part;
+    let mut doc = Document::new(generic_face::build());
+    assert!(!doc.is_dirty(), "a new document has nothing to lose");
+    apply(
+        &mut doc,
+        Command::MoveLandmark(FeaturePoint::Chin, DVec3::new(1.0, 2.0, 3.0)),
+    );
+    assert_eq!(doc.unsaved(), vec![Part::Landmarks]);
+    // Undoing back to the saved state is clean again; redo is dirty again.
+    apply(&mut doc, Command::Undo);
+    assert!(!doc.is_dirty());
+    apply(&mut doc, Command::Redo);
+    assert!(doc.is_dirty());
+
+    let dir = tempfile::tempdir().unwrap();
+    apply(
+        &mut doc,
+        Command::SaveLandmarks(dir.path().join("points.json")),
+    );
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    assert!(!doc.is_dirty(), "{:?}", doc.unsaved());
+
+    // A failed save keeps the part unsaved.
+    apply(
+        &mut doc,
+        Command::MoveLandmark(FeaturePoint::Chin, DVec3::ZERO),
+    );
+    apply(
+        &mut doc,
+        Command::SaveLandmarks(dir.path().join("no/such/dir/points.json")),
+    );
+    assert!(doc.error.is_some());
+    assert_eq!(doc.unsaved(), vec![Part::Landmarks]);
+
+    // Sliders and materials are unsaved work too; presets saved take the sliders with them.
+    apply(&mut doc, Command::ApplyPreset("happiness".into()));
+    let mut soft = doc.edits.fem;
+    soft.skin.young_modulus_pa /= 2.0;
+    apply(&mut doc, Command::SetFemParams(soft));
+    assert_eq!(
+        doc.unsaved(),
+        vec![Part::Landmarks, Part::Activations, Part::Materials]
+    );
+    apply(
+        &mut doc,
+        Command::StorePreset {
+            name: "mine".into(),
+            description: String::new(),
+        },
+    );
+    assert!(doc.unsaved().contains(&Part::Presets));
+    apply(
+        &mut doc,
+        Command::SavePresets(dir.path().join("presets.ron")),
+    );
+    assert_eq!(doc.unsaved(), vec![Part::Landmarks, Part::Materials]);
+    // Discarding counts everything as saved.
+    doc.mark_all_saved();
+    assert!(!doc.is_dirty());
+    // Loading landmarks from a file is not unsaved work.
+    apply(
+        &mut doc,
+        Command::LoadLandmarks(dir.path().join("points.json")),
+    );
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    assert!(!doc.unsaved().contains(&Part::Landmarks));
+}
+
+#[test]
+fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
+    use facesynth::app::autosave::{self, AutosaveState};
+    let mut doc = Document::new(generic_face::build());
+    apply(
+        &mut doc,
+        Command::Open(Some(common::gavab("cara1_frontal1.wrl"))),
+    );
+    let start = doc.generic.landmarks();
+    apply(&mut doc, Command::SetLandmarks(Box::new(start)));
+    apply(
+        &mut doc,
+        Command::MoveLandmark(FeaturePoint::NoseTip, DVec3::new(1.5, -2.0, 80.0)),
+    );
+    apply(&mut doc, Command::ApplyPreset("sadness".into()));
+    let mut fem = doc.edits.fem;
+    fem.fat.young_modulus_pa = 240.0;
+    apply(&mut doc, Command::SetFemParams(fem));
+    apply(
+        &mut doc,
+        Command::StorePreset {
+            name: "sad2".into(),
+            description: "d".into(),
+        },
+    );
+    assert!(doc.is_dirty());
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("state/facesynth/autosave.ron");
+    let state = AutosaveState::of(&doc);
+    state.write(&path).unwrap();
+    // Written atomically: no temporary file is left beside it.
+    let names: Vec<_> = std::fs::read_dir(path.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, vec![std::ffi::OsString::from("autosave.ron")]);
+    let back = autosave::find(&path).expect("found").unwrap();
+    assert_eq!(back, state);
+    assert_eq!(
+        back.scan.as_deref(),
+        Some(&*common::gavab("cara1_frontal1.wrl"))
+    );
+
+    // A fresh editor restores it: the scan is read again and the edits come back on it.
+    let mut fresh = Document::new(generic_face::build());
+    let mut worker = WorkerState::default();
+    let mut jobs: std::collections::VecDeque<_> = fresh.restore_autosave(&back).into();
+    while let Some(job) = jobs.pop_front() {
+        jobs.extend(fresh.receive(worker.run(job)));
+    }
+    assert!(fresh.error.is_none(), "{:?}", fresh.error);
+    assert_eq!(fresh.scan.as_ref().unwrap().mesh.vertex_count(), 13_709);
+    assert_eq!(fresh.edits, doc.edits);
+    assert!(fresh.is_dirty(), "restored work is still unsaved");
+    assert!(fresh.edits.presets.get("sad2").is_some());
+
+    // A damaged autosave is reported with its name, not restored.
+    std::fs::write(&path, "(format: 1, saved_unix_s: ").unwrap();
+    let e = autosave::find(&path).unwrap().unwrap_err().to_string();
+    assert!(e.contains("autosave.ron"), "{e}");
+    autosave::remove(&path);
+    assert!(autosave::find(&path).is_none());
+}

@@ -78,6 +78,8 @@ fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
         let out = aug.path().join(format!("{}_frontal1", s.subject));
         std::fs::create_dir_all(&out).unwrap();
         io::write_mesh(&out.join("bulge.obj"), &mesh).unwrap();
+        // `augment` marks a finished folder; evaluate uses only marked ones.
+        std::fs::write(out.join(facesynth::pipeline::DONE_MARKER), "{}\n").unwrap();
     }
     let eval = evaluate(&dir, Some(aug.path()), &ProtocolParams::default()).unwrap();
     let r = &eval.report;

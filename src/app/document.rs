@@ -265,6 +265,38 @@ pub struct Document {
     pub status: Option<String>,
     /// A name the expressions panel offers for "store as preset" (e.g. the fitted scan's).
     pub preset_name_hint: Option<String>,
+    /// The edits as last loaded or saved, part by part: what [`Document::unsaved`] compares
+    /// against (so undoing back to the saved state counts as saved again).
+    saved: Edits,
+    /// Edits from an autosave, put back once the scan it was made on has loaded.
+    pending_restore: Option<Edits>,
+}
+
+/// A part of the edits that can be unsaved (see [`Document::unsaved`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    /// Saved by `SaveLandmarks` (JSON).
+    Landmarks,
+    /// Saved by `SavePresets` (RON).
+    Presets,
+    /// The activation sliders: saved with the presets (store them as a preset first).
+    Activations,
+    /// Materials and layer thicknesses: no file of their own; kept by the autosave.
+    Materials,
+    /// Muscle definitions: no file of their own in the editor; kept by the autosave.
+    Muscles,
+}
+
+impl Part {
+    pub fn name(self) -> &'static str {
+        match self {
+            Part::Landmarks => "landmarks",
+            Part::Presets => "presets",
+            Part::Activations => "activations",
+            Part::Materials => "materials",
+            Part::Muscles => "muscles",
+        }
+    }
 }
 
 impl Document {
@@ -285,12 +317,67 @@ impl Document {
                 landmarks,
                 ..Edits::default()
             },
+            saved: Edits {
+                landmarks,
+                ..Edits::default()
+            },
+            pending_restore: None,
             history: History::new(200),
             version: 0,
             pending: Vec::new(),
             error: None,
             status: None,
             preset_name_hint: None,
+        }
+    }
+
+    /// The parts edited since they were last loaded or saved (empty: nothing to lose).
+    pub fn unsaved(&self) -> Vec<Part> {
+        let (e, s) = (&self.edits, &self.saved);
+        let mut out = Vec::new();
+        if e.landmarks != s.landmarks {
+            out.push(Part::Landmarks);
+        }
+        if e.presets != s.presets {
+            out.push(Part::Presets);
+        }
+        if e.activations != s.activations || e.applied_preset != s.applied_preset {
+            out.push(Part::Activations);
+        }
+        if e.fem != s.fem {
+            out.push(Part::Materials);
+        }
+        if e.muscles != s.muscles {
+            out.push(Part::Muscles);
+        }
+        out
+    }
+
+    /// Any edit since the last load or save.
+    pub fn is_dirty(&self) -> bool {
+        !self.unsaved().is_empty()
+    }
+
+    /// Counts everything as saved (the user chose to discard the changes).
+    pub fn mark_all_saved(&mut self) {
+        self.saved = self.edits.clone();
+    }
+
+    /// Puts an autosave back: re-opens its scan (the edits follow once it has loaded) or, with
+    /// no scan, restores the edits at once. The restored edits count as unsaved.
+    pub fn restore_autosave(&mut self, state: &super::autosave::AutosaveState) -> Vec<Job> {
+        let edits = state.edits();
+        match &state.scan {
+            Some(path) => {
+                self.pending_restore = Some(edits);
+                self.apply(Command::Open(Some(path.clone())))
+            }
+            None => {
+                let mut jobs = self.apply(Command::Open(None));
+                self.history.checkpoint(&self.edits);
+                jobs.extend(self.restore(edits));
+                jobs
+            }
         }
     }
 
@@ -343,6 +430,7 @@ impl Document {
                     self.detection = None;
                     self.registration = None;
                     self.edits.landmarks = Some(self.generic.landmarks());
+                    self.saved.landmarks = self.edits.landmarks;
                     self.history.clear();
                     self.version += 1;
                     if self.fem.as_ref().is_some_and(|f| f.surface_id != 0) {
@@ -389,6 +477,7 @@ impl Document {
             Command::LoadLandmarks(path) => match crate::pipeline::read_landmarks(&path) {
                 Ok(l) => {
                     self.status = Some(format!("loaded {}", path.display()));
+                    self.saved.landmarks = Some(l);
                     self.apply(Command::SetLandmarks(Box::new(l)))
                 }
                 Err(e) => self.fail(e.to_string()),
@@ -398,8 +487,12 @@ impl Document {
                     return self.fail("no landmarks to save");
                 };
                 let text = serde_json::to_string_pretty(l).unwrap_or_default() + "\n";
+                let l = Some(*l);
                 match io::write_text_atomic(&path, &text) {
-                    Ok(()) => self.status = Some(format!("saved {}", path.display())),
+                    Ok(()) => {
+                        self.saved.landmarks = l;
+                        self.status = Some(format!("saved {}", path.display()));
+                    }
                     Err(e) => self.error = Some(e.to_string()),
                 }
                 Vec::new()
@@ -520,7 +613,13 @@ impl Document {
                 let pretty = ron::ser::PrettyConfig::new();
                 match ron::ser::to_string_pretty(&self.edits.presets, pretty) {
                     Ok(text) => match io::write_text_atomic(&path, &(text + "\n")) {
-                        Ok(()) => self.status = Some(format!("saved {}", path.display())),
+                        Ok(()) => {
+                            // The sliders count as saved with the presets they were stored in.
+                            self.saved.presets = self.edits.presets.clone();
+                            self.saved.activations = self.edits.activations.clone();
+                            self.saved.applied_preset = self.edits.applied_preset.clone();
+                            self.status = Some(format!("saved {}", path.display()));
+                        }
                         Err(e) => self.error = Some(e.to_string()),
                     },
                     Err(e) => self.error = Some(format!("{}: {e}", path.display())),
@@ -530,7 +629,12 @@ impl Document {
             Command::LoadPresets(path) => match ExpressionSet::load(&path) {
                 Ok(set) => {
                     self.history.checkpoint(&self.edits);
+                    // Loaded presets are not unsaved work, but earlier unsaved ones still are.
+                    let clean = self.edits.presets == self.saved.presets;
                     self.edits.presets.merge(set);
+                    if clean {
+                        self.saved.presets = self.edits.presets.clone();
+                    }
                     self.status = Some(format!("loaded {}", path.display()));
                     Vec::new()
                 }
@@ -697,8 +801,14 @@ impl Document {
                 self.fem_dirty |= self.fem.as_ref().is_some_and(|f| f.surface_id != 0);
                 // A new scan's feature points are unknown until detected, loaded or placed.
                 self.edits.landmarks = None;
+                self.saved.landmarks = None;
                 self.history.clear();
                 self.version += 1;
+                if let Some(edits) = self.pending_restore.take() {
+                    self.fem_dirty |=
+                        edits.fem != self.edits.fem || edits.muscles != self.edits.muscles;
+                    self.edits = edits;
+                }
             }
             JobResult::Denoised(Ok(d)) => {
                 self.denoised = Some(*d);
@@ -739,7 +849,11 @@ impl Document {
             | JobResult::Fem(Err(e))
             | JobResult::Detected(Err(e))
             | JobResult::Fitted(Err(e)) => {
-                self.error = Some(e);
+                if what == "loading" && self.pending_restore.take().is_some() {
+                    self.error = Some(format!("autosave not restored: {e}"));
+                } else {
+                    self.error = Some(e);
+                }
             }
         }
         if self.fem_dirty {

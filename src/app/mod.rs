@@ -2,6 +2,7 @@
 //! them once per frame to the [`Document`]; slow work (loading, denoising, registration) runs
 //! on the worker thread and comes back over a channel; the UI thread never blocks.
 
+pub mod autosave;
 pub mod document;
 mod measure;
 mod panels;
@@ -235,6 +236,16 @@ pub struct EditorApp {
     screenshot: Option<ScreenshotPlan>,
     measure: Option<measure::SliderMeasurement>,
     outcome: Arc<Mutex<Option<String>>>,
+    /// Where the autosave goes; `None` in scripted runs (they neither offer nor write one).
+    autosave_path: Option<PathBuf>,
+    /// `ctx.input(|i| i.time)` of the last autosave (or of the start).
+    last_autosave_s: f64,
+    /// An earlier session's autosave, offered until the user answers.
+    autosave_offer: Option<autosave::AutosaveState>,
+    /// The window's close was held back because of unsaved changes: the prompt is shown.
+    close_prompt: bool,
+    /// The user answered the prompt: let the next close request through.
+    allow_close: bool,
 }
 
 impl EditorApp {
@@ -300,7 +311,20 @@ impl EditorApp {
             scene_build_ms: 0.0,
             screenshot: None,
             outcome,
+            autosave_path: None,
+            last_autosave_s: 0.0,
+            autosave_offer: None,
+            close_prompt: false,
+            allow_close: false,
         };
+        if !app.scripted {
+            app.autosave_path = autosave::default_path();
+            match app.autosave_path.as_deref().and_then(autosave::find) {
+                Some(Ok(state)) => app.autosave_offer = Some(state),
+                Some(Err(e)) => app.doc.error = Some(format!("autosave not offered: {e}")),
+                None => {}
+            }
+        }
         if args.file.is_none() {
             let (lo, hi) = app.doc.generic.mesh.bbox_mm().unwrap_or_default();
             app.camera = OrbitCamera::framing(lo, hi);
@@ -456,6 +480,152 @@ impl EditorApp {
         ctx.request_repaint();
     }
 
+    /// Writes the autosave every [`autosave::AUTOSAVE_INTERVAL_S`] while there are unsaved
+    /// changes; removes it once everything is saved. Not before an earlier session's autosave
+    /// has been answered (it would be overwritten).
+    fn autosave_step(&mut self, ctx: &egui::Context) {
+        let Some(path) = &self.autosave_path else {
+            return;
+        };
+        if self.autosave_offer.is_some() {
+            return;
+        }
+        let now = ctx.input(|i| i.time);
+        if self.doc.is_dirty() {
+            if now - self.last_autosave_s >= autosave::AUTOSAVE_INTERVAL_S {
+                self.last_autosave_s = now;
+                if let Err(e) = autosave::AutosaveState::of(&self.doc).write(path) {
+                    self.doc.error = Some(format!("autosave failed: {e}"));
+                }
+            }
+            // Come back for the next autosave even when nothing else repaints.
+            ctx.request_repaint_after(std::time::Duration::from_secs_f64(
+                autosave::AUTOSAVE_INTERVAL_S,
+            ));
+        } else if path.exists() {
+            autosave::remove(path);
+        }
+    }
+
+    /// Holds back a close with unsaved changes and asks what to do with them.
+    fn close_guard(&mut self, ctx: &egui::Context) {
+        if self.autosave_path.is_none() {
+            return; // scripted: closes when done
+        }
+        if ctx.input(|i| i.viewport().close_requested()) && !self.allow_close && self.doc.is_dirty()
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.close_prompt = true;
+        }
+        if self.close_prompt {
+            self.close_prompt_ui(ctx);
+        }
+        if let Some(state) = self.autosave_offer.clone() {
+            self.autosave_offer_ui(ctx, &state);
+        }
+    }
+
+    fn close_prompt_ui(&mut self, ctx: &egui::Context) {
+        let unsaved = self.doc.unsaved();
+        let modal = egui::Modal::new(egui::Id::unique("unsaved-changes")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            if unsaved.is_empty() {
+                ui.label("Everything is saved now.");
+            } else {
+                let names: Vec<&str> = unsaved.iter().map(|p| p.name()).collect();
+                ui.label(format!("Not saved: {}.", names.join(", ")));
+            }
+            ui.horizontal(|ui| {
+                if unsaved.contains(&document::Part::Landmarks)
+                    && ui.button("Save landmarks…").clicked()
+                    && let Some(path) = rfd::FileDialog::new()
+                        .add_filter("landmarks", &["json"])
+                        .set_file_name("landmarks.json")
+                        .save_file()
+                {
+                    self.commands.push(Command::SaveLandmarks(path));
+                }
+                if (unsaved.contains(&document::Part::Presets)
+                    || unsaved.contains(&document::Part::Activations))
+                    && ui.button("Save preset…").clicked()
+                    && let Some(path) = rfd::FileDialog::new()
+                        .add_filter("RON", &["ron"])
+                        .set_file_name("expressions.ron")
+                        .save_file()
+                {
+                    if unsaved.contains(&document::Part::Activations)
+                        && !self.doc.edits.activations.is_empty()
+                    {
+                        // The sliders are kept as a preset in the saved file.
+                        self.commands.push(Command::StorePreset {
+                            name: self.preset_name.clone(),
+                            description: "saved on close".into(),
+                        });
+                    }
+                    self.commands.push(Command::SavePresets(path));
+                }
+            });
+            ui.separator();
+            ui.horizontal(|ui| {
+                let close = if unsaved.is_empty() {
+                    "Close"
+                } else {
+                    "Discard and close"
+                };
+                if ui.button(close).clicked() {
+                    self.doc.mark_all_saved();
+                    if let Some(p) = &self.autosave_path {
+                        autosave::remove(p);
+                    }
+                    self.allow_close = true;
+                    ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+                if ui.button("Cancel").clicked() {
+                    self.close_prompt = false;
+                }
+            });
+        });
+        if modal.should_close() {
+            self.close_prompt = false;
+        }
+    }
+
+    fn autosave_offer_ui(&mut self, ctx: &egui::Context, state: &autosave::AutosaveState) {
+        egui::Modal::new(egui::Id::unique("restore-autosave")).show(ctx, |ui| {
+            ui.heading("Restore autosave?");
+            ui.label("The last session ended with unsaved changes.");
+            let age_s = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs())
+                .saturating_sub(state.saved_unix_s);
+            ui.label(format!(
+                "Saved {} min ago; scan: {}.",
+                age_s / 60,
+                state
+                    .scan
+                    .as_ref()
+                    .map_or("none (generic face)".into(), |p| p.display().to_string())
+            ));
+            ui.horizontal(|ui| {
+                if ui.button("Restore").clicked() {
+                    for job in self.doc.restore_autosave(state) {
+                        self.worker.send(job);
+                    }
+                    if let Some(p) = &state.scan {
+                        self.remember(p.clone());
+                    }
+                    self.autosave_offer = None;
+                }
+                if ui.button("Discard").clicked() {
+                    if let Some(p) = &self.autosave_path {
+                        autosave::remove(p);
+                    }
+                    self.autosave_offer = None;
+                }
+            });
+        });
+    }
+
     fn set_outcome(&self, message: String) {
         if let Ok(mut o) = self.outcome.lock() {
             *o = Some(message);
@@ -536,6 +706,21 @@ impl eframe::App for EditorApp {
             measure::step(self, &ctx);
         } else {
             self.handle_screenshot(&ctx);
+        }
+        self.close_guard(&ctx);
+        self.autosave_step(&ctx);
+    }
+
+    /// Last chance to keep unsaved work: an exit that did not go through the prompt (a
+    /// session logout, a signal) writes the autosave; a clean exit removes it.
+    fn on_exit(&mut self) {
+        let Some(path) = &self.autosave_path else {
+            return;
+        };
+        if self.doc.is_dirty() && self.autosave_offer.is_none() {
+            let _ = autosave::AutosaveState::of(&self.doc).write(path);
+        } else if self.autosave_offer.is_none() {
+            autosave::remove(path);
         }
     }
 

@@ -97,8 +97,7 @@ impl ExpressionSet {
     /// Reads a user preset file (RON); its presets are added after (or replace) the built-ins
     /// with [`ExpressionSet::merge`].
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Self::parse(&text, path)
+        Self::parse(&crate::io::read_text_file(path)?, path)
     }
 
     /// Adds `other`'s presets, replacing those with the same name.

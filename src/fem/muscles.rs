@@ -178,8 +178,7 @@ impl MuscleSet {
 
     /// Reads a user muscle file (RON).
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Self::parse(&text, path)
+        Self::parse(&crate::io::read_text_file(path)?, path)
     }
 
     /// Muscle names in model order: per pair, left then right.

@@ -159,7 +159,7 @@ fn read_mesh_keeping_ids(path: &Path) -> Result<Mesh> {
     if crate::io::MeshFormat::from_path(path)? != crate::io::MeshFormat::Obj {
         return crate::io::read_mesh(path);
     }
-    let limits = crate::io::ReadLimits::default();
+    let limits = crate::io::default_limits();
     let bytes = crate::io::read_file(path, &limits)?;
     let text = String::from_utf8_lossy(&bytes);
     let mut positions = Vec::new();
@@ -219,7 +219,7 @@ fn read_mesh_keeping_ids(path: &Path) -> Result<Mesh> {
 /// Reads a feature-point sidecar and checks its ids against a mesh of `vertex_count` vertices.
 pub fn read_sidecar(path: &Path, vertex_count: usize) -> Result<[u32; FeaturePoint::COUNT]> {
     let format = SidecarFormat::from_path(path)?;
-    let bytes = crate::io::read_file(path, &crate::io::ReadLimits::default())?;
+    let bytes = crate::io::read_file(path, &crate::io::default_limits())?;
     let text = std::str::from_utf8(&bytes)
         .map_err(|_| Error::invalid(path, "feature-point sidecar is not UTF-8 text"))?;
     let map: BTreeMap<String, i64> = match format {

@@ -4,6 +4,18 @@
 //! message names the file and the problem; no input makes a reader panic. Every writer writes
 //! to a temporary file beside the target and renames it into place, so an interrupted write
 //! never leaves a half-written file under the real name.
+//!
+//! What the readers accept rather than refuse (the sensible outcome for scan data):
+//! - a face repeating a vertex is cleaned (consecutive repeats merged) or, with no area left,
+//!   dropped; a face with the same vertices as an earlier one (either orientation) is dropped;
+//! - collinear (zero-area) faces and non-manifold edges (three or more faces on one edge) are
+//!   kept as they are: they carry no area, so area-weighted normals and curvature ignore them;
+//! - a mesh of one face is a mesh; the pipeline steps then say what they cannot do with it.
+//!
+//! What they refuse, each with the file and the problem: truncated data, counts that do not
+//! match the data, indices out of range, non-finite or beyond-±[`ReadLimits`] coordinates,
+//! no vertices or faces, text in another encoding, binary garbage, directories, unreadable
+//! files, and anything over the file-size or vertex-count limits.
 
 pub mod obj;
 pub mod ply;
@@ -48,41 +60,121 @@ impl MeshFormat {
     }
 }
 
-/// Limits on what a reader accepts, so a corrupt header cannot make us allocate without bound.
-#[derive(Debug, Clone, Copy)]
+/// Limits on what a reader accepts, so a corrupt header cannot make us allocate without bound
+/// and a mistaken path to a huge file fails at once. The CLI sets them with `--max-file-mb`
+/// and `--max-vertices` (see [`set_default_limits`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReadLimits {
-    /// Largest file accepted, bytes. Default 1 GiB (the largest GavabDB scan is < 1 MB).
+    /// Largest file accepted, bytes. Default 1 GiB (the largest GavabDB scan is < 1 MB; a
+    /// 1M-vertex binary PLY of quads is ~29 MB, a 1.4M-vertex VRML scan ~85 MB).
     pub max_file_bytes: u64,
-    /// Largest vertex count accepted. Default 20 million.
+    /// Largest vertex (or point) count accepted. Default 20 million (peak memory through the
+    /// landmark pipeline is ~400 bytes per vertex, measured on 1M-vertex meshes: ~8 GB at the
+    /// limit).
     pub max_vertices: usize,
+    /// Largest |coordinate| accepted, mm. Default 1e6 (1 km): a face scan spans < 1 m, so a
+    /// larger value is a corrupt number or a file in other units, and would wreck every
+    /// distance-based step downstream.
+    pub max_abs_coordinate_mm: f64,
+}
+
+impl ReadLimits {
+    /// The documented defaults (see the fields).
+    pub const DEFAULT: ReadLimits = ReadLimits {
+        max_file_bytes: 1 << 30,
+        max_vertices: 20_000_000,
+        max_abs_coordinate_mm: 1e6,
+    };
 }
 
 impl Default for ReadLimits {
     fn default() -> Self {
-        ReadLimits {
-            max_file_bytes: 1 << 30,
-            max_vertices: 20_000_000,
-        }
+        ReadLimits::DEFAULT
     }
 }
 
-/// Reads a mesh in any known format (by extension) with default limits.
+/// The limits [`read_mesh`] uses; the CLI sets them once at start from its flags.
+static DEFAULT_LIMITS: std::sync::RwLock<ReadLimits> = std::sync::RwLock::new(ReadLimits::DEFAULT);
+
+/// Sets the limits every [`read_mesh`] call uses from now on (process-wide, so the CLI's
+/// flags reach every command and pipeline step without threading them through).
+pub fn set_default_limits(limits: ReadLimits) {
+    *DEFAULT_LIMITS.write().unwrap_or_else(|e| e.into_inner()) = limits;
+}
+
+/// The limits [`read_mesh`] uses now.
+pub fn default_limits() -> ReadLimits {
+    *DEFAULT_LIMITS.read().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Reads a mesh in any known format (by extension) with the [`default_limits`].
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
-    read_mesh_with(path, &ReadLimits::default())
+    read_mesh_with(path, &default_limits())
 }
 
 /// Reads a mesh in any known format (by extension).
 pub fn read_mesh_with(path: &Path, limits: &ReadLimits) -> Result<Mesh> {
     let format = MeshFormat::from_path(path)?;
     let bytes = read_file(path, limits)?;
+    parse_mesh(&bytes, format, path, limits)
+}
+
+/// Parses a file's bytes in `format` and validates the mesh: what [`read_mesh_with`] does after
+/// reading (the fuzz targets enter here). `path` only names the file in errors.
+pub fn parse_mesh(
+    bytes: &[u8],
+    format: MeshFormat,
+    path: &Path,
+    limits: &ReadLimits,
+) -> Result<Mesh> {
+    if looks_like_utf16(bytes) {
+        return Err(Error::invalid(
+            path,
+            "the file is UTF-16 text; facesynth reads ASCII/UTF-8 (convert it, e.g. \
+             `iconv -f UTF-16 -t UTF-8`)",
+        ));
+    }
     let mesh = match format {
-        MeshFormat::Vrml => vrml::parse(&bytes, path, limits)?,
-        MeshFormat::Obj => obj::parse(&bytes, path, limits)?,
-        MeshFormat::Ply => ply::parse(&bytes, path, limits)?,
-        MeshFormat::Xyz => xyz::parse(&bytes, path, limits)?,
+        MeshFormat::Vrml => vrml::parse(bytes, path, limits)?,
+        MeshFormat::Obj => obj::parse(bytes, path, limits)?,
+        MeshFormat::Ply => ply::parse(bytes, path, limits)?,
+        MeshFormat::Xyz => xyz::parse(bytes, path, limits)?,
     };
+    let mut mesh = mesh;
+    if mesh.faces.remove_duplicates() > 0 {
+        mesh.update_normals();
+    }
     mesh.validate().map_err(|m| Error::invalid(path, m))?;
+    let bound = limits.max_abs_coordinate_mm;
+    if let Some((i, p)) = mesh
+        .positions_mm
+        .iter()
+        .enumerate()
+        .find(|(_, p)| p.abs().max_element() > bound)
+    {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "vertex {i} is at ({}, {}, {}) mm, beyond the limit of ±{bound:e} mm (a corrupt \
+                 number, or the file is not in mm)",
+                p.x, p.y, p.z
+            ),
+        ));
+    }
     Ok(mesh)
+}
+
+/// A UTF-16 byte-order mark, or ASCII text with a zero byte after every character (Windows
+/// tools save "Unicode" text so): every reader would otherwise report a puzzling syntax error.
+fn looks_like_utf16(bytes: &[u8]) -> bool {
+    if bytes.starts_with(&[0xff, 0xfe]) || bytes.starts_with(&[0xfe, 0xff]) {
+        return true;
+    }
+    let head = &bytes[..bytes.len().min(64)];
+    head.len() >= 8
+        && head
+            .chunks_exact(2)
+            .all(|c| (c[0] == 0) != (c[1] == 0) && (c[0] | c[1]).is_ascii())
 }
 
 /// Writes a mesh; the format follows the extension (OBJ or PLY).
@@ -107,13 +199,35 @@ pub fn read_file(path: &Path, limits: &ReadLimits) -> Result<Vec<u8>> {
         return Err(Error::invalid(
             path,
             format!(
-                "file is {} bytes, more than the limit of {} bytes",
+                "file is {} bytes, more than the limit of {} bytes (raise it with --max-file-mb)",
                 meta.len(),
                 limits.max_file_bytes
             ),
         ));
     }
     std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
+/// Largest text file (landmarks, presets, muscles, ground truth) accepted, bytes: 64 MiB, far
+/// above any real one, so a mistaken path to a scan or a device fails fast.
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// Reads a small UTF-8 text file (JSON, RON) through [`read_file`]'s checks.
+pub fn read_text_file(path: &Path) -> Result<String> {
+    let limits = ReadLimits {
+        max_file_bytes: MAX_TEXT_BYTES.min(default_limits().max_file_bytes),
+        ..default_limits()
+    };
+    let bytes = read_file(path, &limits)?;
+    String::from_utf8(bytes).map_err(|e| {
+        Error::invalid(
+            path,
+            format!(
+                "not UTF-8 text (bad byte at offset {}); save it as UTF-8",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })
 }
 
 /// Writes through `body` into `path.tmp-<pid>` beside `path`, then renames it over `path`.
@@ -166,10 +280,15 @@ pub(crate) fn push_clean_face(faces: &mut Polygons, face: &mut Vec<u32>, reverse
     true
 }
 
-fn temp_path_for(path: &Path) -> PathBuf {
+/// `.<name>.tmp-<pid>-<n>` beside `path`: hidden, never a mesh extension (so no reader or
+/// batch takes it for an output), unique per process and per write (two threads writing the
+/// same file do not share one).
+pub fn temp_path_for(path: &Path) -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+    path.with_file_name(format!(".{name}.tmp-{}-{n}", std::process::id()))
 }

@@ -51,7 +51,7 @@ pub fn parse(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Mesh> {
                 }
                 if positions.len() >= limits.max_vertices {
                     return Err(err(format!(
-                        "more than {} vertices (the reader's limit)",
+                        "more than {} vertices (the reader's limit; raise it with --max-vertices)",
                         limits.max_vertices
                     )));
                 }

@@ -76,7 +76,7 @@ pub fn parse_with_scalar(
                     return Err(Error::invalid(
                         path,
                         format!(
-                            "header declares {} vertices, more than the reader's limit of {}",
+                            "header declares {} vertices, more than the reader's limit of {} (raise it with --max-vertices)",
                             el.count, limits.max_vertices
                         ),
                     ));
@@ -160,6 +160,16 @@ pub fn parse_with_scalar(
                 }
             }
         }
+    }
+    // Data after the declared elements means the header's counts are wrong, so what was read
+    // is not what the file holds (trailing whitespace is harmless).
+    if let Some(extra) = src.trailing_bytes() {
+        return Err(err(
+            &src,
+            format!(
+                "{extra} bytes of data after the elements the header declares (wrong element counts?)"
+            ),
+        ));
     }
     if positions.is_empty() {
         return Err(Error::invalid(path, "the file has no vertices"));
@@ -411,6 +421,18 @@ impl Source<'_> {
             Source::Ascii(a) => a.read(ty),
             Source::Binary(b) => b.read(ty),
         }
+    }
+
+    /// How many bytes follow the read position, if any of them is not whitespace.
+    fn trailing_bytes(&self) -> Option<usize> {
+        let (s, pos) = match self {
+            Source::Ascii(a) => (a.s, a.pos),
+            Source::Binary(b) => (b.s, b.pos),
+        };
+        let rest = s.get(pos..).unwrap_or(&[]);
+        rest.iter()
+            .any(|c| !c.is_ascii_whitespace())
+            .then_some(rest.len())
     }
 
     fn skip_list(&mut self, count_ty: Ty, item_ty: Ty) -> std::result::Result<(), String> {

@@ -715,7 +715,7 @@ impl<'a> Parser<'a, '_> {
             return Err(self.err(
                 line,
                 format!(
-                    "more than {} points (the reader's vertex limit)",
+                    "more than {} points (the reader's vertex limit; raise it with --max-vertices)",
                     self.limits.max_vertices
                 ),
             ));

@@ -136,6 +136,19 @@ pub fn parse_points(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Ve
                     format!("non-finite coordinate '{word}'"),
                 ));
             }
+            // Checked here, not only on the mesh: the triangulation would drop such a point
+            // as a spike and hide that the file holds a corrupt number.
+            if v.abs() > limits.max_abs_coordinate_mm {
+                return Err(Error::syntax(
+                    path,
+                    line_no,
+                    format!(
+                        "coordinate {v} mm is beyond the limit of ±{:e} mm (a corrupt number, or \
+                         the file is not in mm)",
+                        limits.max_abs_coordinate_mm
+                    ),
+                ));
+            }
             *slot = v;
         }
         if points.len() >= limits.max_vertices {
@@ -143,7 +156,7 @@ pub fn parse_points(bytes: &[u8], path: &Path, limits: &ReadLimits) -> Result<Ve
                 path,
                 line_no,
                 format!(
-                    "more than {} points (the reader's vertex limit)",
+                    "more than {} points (the reader's vertex limit; raise it with --max-vertices)",
                     limits.max_vertices
                 ),
             ));

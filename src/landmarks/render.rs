@@ -102,8 +102,8 @@ pub fn write_png(
             }
         }
     }
-    img.save(path)
-        .map_err(|e| Error::io(path, std::io::Error::other(e.to_string())))
+    // Through the atomic writer like every other output, so a killed run leaves no half PNG.
+    crate::fem::picture::save_png(path, &img)
 }
 
 /// Blue (0) → green (0.5) → red (1).

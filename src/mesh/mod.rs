@@ -63,6 +63,42 @@ impl Polygons {
         self.offsets.push(self.indices.len() as u32);
     }
 
+    /// Drops every face whose vertex set equals an earlier face's (in either orientation);
+    /// returns how many were dropped. A doubled face makes its edges look non-manifold and
+    /// counts twice in area-weighted normals, and carries nothing the first copy does not.
+    pub fn remove_duplicates(&mut self) -> usize {
+        use std::collections::HashSet;
+        let mut small: HashSet<[u32; 4]> = HashSet::with_capacity(self.len());
+        let mut large: HashSet<Vec<u32>> = HashSet::new();
+        let mut keep = Vec::with_capacity(self.len());
+        for f in self.iter() {
+            let fresh = if f.len() <= 4 {
+                let mut key = [u32::MAX; 4];
+                key[..f.len()].copy_from_slice(f);
+                key.sort_unstable();
+                small.insert(key)
+            } else {
+                let mut key = f.to_vec();
+                key.sort_unstable();
+                large.insert(key)
+            };
+            keep.push(fresh);
+        }
+        let dropped = keep.iter().filter(|k| !**k).count();
+        if dropped > 0 {
+            let mut out = Polygons::new();
+            out.offsets.reserve(self.len() - dropped);
+            out.indices.reserve(self.indices.len());
+            for (f, k) in self.iter().zip(&keep) {
+                if *k {
+                    out.push(f);
+                }
+            }
+            *self = out;
+        }
+        dropped
+    }
+
     /// Vertex ids of face `f`.
     pub fn get(&self, f: usize) -> &[u32] {
         &self.indices[self.offsets[f] as usize..self.offsets[f + 1] as usize]

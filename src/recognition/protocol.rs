@@ -12,7 +12,8 @@
 //! `*.ply`, any names, e.g. `happiness.obj`; a registered `neutral.obj` may be included and is
 //! just one more gallery sample). The meshes must be in the **original scan's coordinate
 //! frame** (mm): they are resampled with the gallery scan's nose tip and pose. Each becomes a
-//! gallery sample of that subject, kind `synthetic`.
+//! gallery sample of that subject, kind `synthetic`. A folder is used only once it holds
+//! `done.json` (written last by `augment`); one without it is listed as a failure.
 //!
 //! **Nose tip and pose** come from [`scan_pose`] (then, for `auto` and `icp`, a surface
 //! refinement against the mean gallery image). Default [`PoseSource::Auto`], what the
@@ -602,7 +603,17 @@ pub fn collect_samples(
                 gallery.push(sample);
                 if let Some(aug) = augmented {
                     let dir = aug.join(format!("{}_{}", s.subject, s.scan));
-                    if dir.is_dir() {
+                    // A folder without the done marker is from a killed or failed `augment`:
+                    // its meshes may be a partial set, so none of them is used.
+                    if dir.is_dir() && !dir.join(crate::pipeline::DONE_MARKER).is_file() {
+                        failures.push(Failure {
+                            file: dir.clone(),
+                            reason: format!(
+                                "augmentation unfinished (no {}); re-run `facesynth augment`",
+                                crate::pipeline::DONE_MARKER
+                            ),
+                        });
+                    } else if dir.is_dir() {
                         for p in read_dir_sorted(&dir)? {
                             if p.is_file() && is_mesh(&p) {
                                 synthetic_jobs.push((p, frame, s.subject.clone()));
