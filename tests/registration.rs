@@ -492,3 +492,44 @@ fn evaluation_table_with_detected_landmarks() {
         println!("<!-- {failed} scans without a registration -->");
     }
 }
+
+/// Regression (found by fuzzing the pipeline, `fuzz/` target `mesh_pipeline`): a scan with one
+/// triangle far from the rest used to ask the closest-point grid for up to 1024³ cells, and a
+/// query far off the scan widened its search over empty cells up to the limit. Both must
+/// still give the right answers.
+#[test]
+fn closest_point_index_handles_a_far_away_triangle_and_far_queries() {
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    let n = 20u32;
+    for j in 0..n {
+        for i in 0..n {
+            positions.push(DVec3::new(i as f64, j as f64, 0.0));
+        }
+    }
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let v = j * n + i;
+            faces.push(vec![v, v + 1, v + 1 + n]);
+            faces.push(vec![v, v + 1 + n, v + n]);
+        }
+    }
+    // One triangle 50 m away on every axis.
+    let far = DVec3::splat(5.0e4);
+    let k = positions.len() as u32;
+    positions.extend([far, far + DVec3::X, far + DVec3::Y]);
+    faces.push(vec![k, k + 1, k + 2]);
+    let mesh = Mesh::from_faces(positions, faces);
+    let index = registration::SurfaceIndex::new(&mesh, 4.0);
+    // Above the grid patch: straight down onto it.
+    let (d, q) = index.closest(DVec3::new(5.3, 7.6, 2.0), 10.0).unwrap();
+    assert!((d - 2.0).abs() < 1e-9 && (q - DVec3::new(5.3, 7.6, 0.0)).length() < 1e-9);
+    // Next to the far triangle: onto it.
+    let (d, _) = index.closest(far + DVec3::new(0.2, 0.2, 3.0), 10.0).unwrap();
+    assert!((d - 3.0).abs() < 1e-9, "{d}");
+    // Far from both, within and beyond the limit.
+    let p = DVec3::new(-300.0, 0.0, 0.0);
+    assert!(index.closest(p, 200.0).is_none());
+    let (d, _) = index.closest(p, 400.0).unwrap();
+    assert!((d - 300.0).abs() < 1e-9, "{d}");
+}
