@@ -720,18 +720,10 @@ impl MedianLaplacianWork {
                 Some((z, sigma, rough)) => {
                     self.candidate[v] = DVec3::new(p.x, p.y, z);
                     self.disp[v] = (z - p.z).abs();
-                    let rim = if topology.is_boundary[v] {
-                        params.rim_floor_mm
-                    } else {
-                        0.0
-                    };
                     self.floor[v] = if moved[v] {
                         params.refine_displacement_mm.max(STILL_MM)
                     } else {
-                        floor
-                            .max(params.outlier_sigmas * sigma)
-                            .max(RING_ROUGHNESS_RATIO * rough)
-                            .max(rim)
+                        eligibility_floor(params, floor, sigma, rough, topology.is_boundary[v])
                     };
                 }
                 None => {
@@ -780,17 +772,9 @@ impl MedianLaplacianWork {
             if (z - p.z) * (self.candidate[v].z - p.z) <= 0.0 {
                 continue;
             }
-            let rim = if topology.is_boundary[v] {
-                params.rim_floor_mm
-            } else {
-                0.0
-            };
             self.candidate[v] = DVec3::new(p.x, p.y, z);
             self.disp[v] = (z - p.z).abs();
-            self.floor[v] = floor
-                .max(params.outlier_sigmas * sigma)
-                .max(RING_ROUGHNESS_RATIO * rough)
-                .max(rim);
+            self.floor[v] = eligibility_floor(params, floor, sigma, rough, topology.is_boundary[v]);
         }
     }
 
@@ -1157,6 +1141,22 @@ impl QuadricFit {
         ];
         Some(std::array::from_fn(|i| c[i] * unscale[i]))
     }
+}
+
+/// The smallest change that moves a vertex not yet moved: the displacement floor, `k σ̂` of
+/// its ring, [`RING_ROUGHNESS_RATIO`] × the ring's roughness, and the rim floor on a rim.
+fn eligibility_floor(
+    params: &DenoiseParams,
+    floor: f64,
+    sigma: f64,
+    rough: f64,
+    boundary: bool,
+) -> f64 {
+    let rim = if boundary { params.rim_floor_mm } else { 0.0 };
+    floor
+        .max(params.outlier_sigmas * sigma)
+        .max(RING_ROUGHNESS_RATIO * rough)
+        .max(rim)
 }
 
 fn eval_quadric(c: &[f64; 6], x: f64, y: f64) -> f64 {

@@ -525,7 +525,9 @@ fn closest_point_index_handles_a_far_away_triangle_and_far_queries() {
     let (d, q) = index.closest(DVec3::new(5.3, 7.6, 2.0), 10.0).unwrap();
     assert!((d - 2.0).abs() < 1e-9 && (q - DVec3::new(5.3, 7.6, 0.0)).length() < 1e-9);
     // Next to the far triangle: onto it.
-    let (d, _) = index.closest(far + DVec3::new(0.2, 0.2, 3.0), 10.0).unwrap();
+    let (d, _) = index
+        .closest(far + DVec3::new(0.2, 0.2, 3.0), 10.0)
+        .unwrap();
     assert!((d - 3.0).abs() < 1e-9, "{d}");
     // Far from both, within and beyond the limit.
     let p = DVec3::new(-300.0, 0.0, 0.0);

@@ -64,15 +64,14 @@ fn start_xvfb() -> (Xvfb, String) {
 /// One window at a time: the tests of this file share the display search.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-fn screenshot(args: &[&str], png: &Path) {
+/// Runs `facesynth ARGS…` in a window on a fresh Xvfb display; panics with its stderr if it fails.
+fn run_in_window(args: &[&std::ffi::OsStr]) {
     let _guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let (_xvfb, display) = start_xvfb();
     let runtime = std::env::temp_dir().join("facesynth-xdg");
     std::fs::create_dir_all(&runtime).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
         .args(args)
-        .arg("--screenshot")
-        .arg(png)
         .env("DISPLAY", &display)
         .env_remove("WAYLAND_DISPLAY")
         .env("XDG_RUNTIME_DIR", &runtime)
@@ -80,9 +79,15 @@ fn screenshot(args: &[&str], png: &Path) {
         .expect("run facesynth");
     assert!(
         out.status.success(),
-        "facesynth --screenshot failed: {}",
+        "facesynth {args:?} failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+fn screenshot(args: &[&str], png: &Path) {
+    let mut all: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_ref()).collect();
+    all.extend(["--screenshot".as_ref(), png.as_os_str()]);
+    run_in_window(&all);
 }
 
 /// Fraction of viewport pixels that differ clearly from the background, and how many distinct
@@ -179,23 +184,7 @@ fn viewer_shows_the_denoise_heat_map_with_spike_markers() {
 
 /// Runs `facesynth view --session FILE` (the session's own screenshots, no `--screenshot`).
 fn run_session(session: &Path) {
-    let _guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    let (_xvfb, display) = start_xvfb();
-    let runtime = std::env::temp_dir().join("facesynth-xdg");
-    std::fs::create_dir_all(&runtime).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
-        .args(["view", "--session"])
-        .arg(session)
-        .env("DISPLAY", &display)
-        .env_remove("WAYLAND_DISPLAY")
-        .env("XDG_RUNTIME_DIR", &runtime)
-        .output()
-        .expect("run facesynth");
-    assert!(
-        out.status.success(),
-        "facesynth view --session failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run_in_window(&["view".as_ref(), "--session".as_ref(), session.as_os_str()]);
 }
 
 /// Share of viewport pixels (right two thirds, where the side panel is not) that differ
