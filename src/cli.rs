@@ -379,6 +379,14 @@ pub struct ViewArgs {
     pub session: Option<PathBuf>,
 }
 
+impl ViewArgs {
+    /// A scripted run (`--screenshot`, `--session`, `--measure-slider`): it keeps no settings,
+    /// neither prompts nor autosaves, and closes itself when done.
+    pub fn scripted(&self) -> bool {
+        self.screenshot.is_some() || self.session.is_some() || self.measure_slider.is_some()
+    }
+}
+
 /// FEM layers drawn in the viewport.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
 pub enum LayersShown {

@@ -7,12 +7,7 @@
 //! No egui here, so the round trip and the restore are tested without a window.
 
 use super::document::{Document, Edits};
-use crate::feature_points::Landmarks;
-use crate::fem::FemParams;
-use crate::fem::expressions::ExpressionSet;
-use crate::fem::muscles::MuscleSet;
 use crate::{Error, Result, io};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Seconds between autosaves while the document has unsaved changes.
@@ -29,42 +24,20 @@ pub struct AutosaveState {
     pub saved_unix_s: u64,
     /// The scan that was open (re-read on restore; `None`: the generic face alone).
     pub scan: Option<PathBuf>,
-    pub landmarks: Option<Landmarks>,
-    pub fem: FemParams,
-    pub muscles: MuscleSet,
-    pub activations: BTreeMap<String, f64>,
-    pub presets: ExpressionSet,
-    pub applied_preset: Option<String>,
+    /// The document's edits, exactly what undo/redo restores.
+    pub edits: Edits,
 }
 
 impl AutosaveState {
     /// The document's editable state now.
     pub fn of(doc: &Document) -> Self {
-        let e = &doc.edits;
         AutosaveState {
             format: FORMAT,
             saved_unix_s: std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0, |d| d.as_secs()),
             scan: doc.scan.as_ref().map(|s| s.path.clone()),
-            landmarks: e.landmarks,
-            fem: e.fem,
-            muscles: e.muscles.clone(),
-            activations: e.activations.clone(),
-            presets: e.presets.clone(),
-            applied_preset: e.applied_preset.clone(),
-        }
-    }
-
-    /// The edits part (what [`Document::restore_autosave`] puts back).
-    pub fn edits(&self) -> Edits {
-        Edits {
-            landmarks: self.landmarks,
-            fem: self.fem,
-            muscles: self.muscles.clone(),
-            activations: self.activations.clone(),
-            presets: self.presets.clone(),
-            applied_preset: self.applied_preset.clone(),
+            edits: doc.edits.clone(),
         }
     }
 

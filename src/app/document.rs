@@ -150,8 +150,8 @@ impl FemState {
     }
 }
 
-/// The part of the document that undo/redo restores.
-#[derive(Debug, Clone, PartialEq)]
+/// The part of the document that undo/redo restores (and the autosave keeps).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Edits {
     /// The scan's 13 feature points (or the generic face's when no scan is loaded).
     pub landmarks: Option<Landmarks>,
@@ -366,7 +366,7 @@ impl Document {
     /// Puts an autosave back: re-opens its scan (the edits follow once it has loaded) or, with
     /// no scan, restores the edits at once. The restored edits count as unsaved.
     pub fn restore_autosave(&mut self, state: &super::autosave::AutosaveState) -> Vec<Job> {
-        let edits = state.edits();
+        let edits = state.edits.clone();
         match &state.scan {
             Some(path) => {
                 self.pending_restore = Some(edits);

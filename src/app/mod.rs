@@ -27,8 +27,7 @@ use worker::Worker;
 /// Opens the editor window and runs it until it is closed (or, with `--screenshot`, until the
 /// screenshot is written). An error in screenshot mode (file unreadable, no GPU) is returned.
 pub fn run(args: ViewArgs) -> Result<()> {
-    let scripted =
-        args.screenshot.is_some() || args.measure_slider.is_some() || args.session.is_some();
+    let scripted = args.scripted();
     let session = match &args.session {
         Some(path) => session::load(path)?,
         None => Vec::new(),
@@ -255,8 +254,7 @@ impl EditorApp {
         session: Vec<session::Step>,
         outcome: Arc<Mutex<Option<String>>>,
     ) -> Self {
-        let scripted =
-            args.screenshot.is_some() || args.session.is_some() || args.measure_slider.is_some();
+        let scripted = args.scripted();
         let settings: Settings = match (scripted, cc.storage) {
             (false, Some(storage)) => eframe::get_value(storage, SETTINGS_KEY).unwrap_or_default(),
             _ => Settings::default(),
