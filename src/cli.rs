@@ -179,6 +179,9 @@ pub enum Command {
         /// Preset name (default: the expression scan's file stem).
         #[arg(long)]
         name: Option<String>,
+        /// Muscle definitions (RON, like assets/muscles.ron) instead of the built-in ones.
+        #[arg(long)]
+        muscles: Option<PathBuf>,
     },
     /// Face recognition on a GavabDB-style dataset (paper section 4): Fisherfaces on range
     /// images, gallery = frontal1 (+ synthetic expressions), probes = frontal2, sonrisa, risa,
@@ -576,6 +579,7 @@ pub fn run(cli: Cli) -> Result<()> {
             expression_landmarks,
             out,
             name,
+            muscles,
         }) => print_json(&fem::fit_expression(
             &neutral_scan,
             &expression_scan,
@@ -583,6 +587,7 @@ pub fn run(cli: Cli) -> Result<()> {
             expression_landmarks.as_deref(),
             &out,
             name.as_deref(),
+            muscles.as_deref(),
         )?),
         Some(Command::Evaluate(args)) => print_json(&evaluate(&args)?),
         Some(Command::Augment {
@@ -893,9 +898,32 @@ pub fn augment(
     params: &crate::pipeline::AugmentParams,
 ) -> Result<serde_json::Value> {
     let start = std::time::Instant::now();
-    let (done, failed) = crate::pipeline::augment(gallery, out, params, &|k, n, line| {
-        eprintln!("augment [{k}/{n}] {line}");
-    })?;
+    // A bar on a terminal; one line per scan where stderr is a log (indicatif hides the bar
+    // there). Failures are printed above the bar so they stay on screen.
+    let bar = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "augment {bar:30} {pos}/{len} scans, {elapsed} elapsed, eta {eta}  {wide_msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let result = crate::pipeline::augment(gallery, out, params, &|k, n, line| {
+        if bar.is_hidden() {
+            eprintln!("augment [{k}/{n}] {line}");
+            return;
+        }
+        if k == 0 {
+            bar.set_length(n as u64);
+            // Elapsed and eta keep moving while the first (slow) scans run.
+            bar.enable_steady_tick(std::time::Duration::from_millis(250));
+        }
+        bar.set_position(k as u64);
+        if line.contains("FAILED") {
+            bar.println(format!("augment [{k}/{n}] {line}"));
+        }
+        bar.set_message(line.to_string());
+    });
+    bar.finish_and_clear();
+    let (done, failed) = result?;
     let seconds = start.elapsed().as_secs_f64();
     Ok(json!({
         "gallery": gallery, "out": out,

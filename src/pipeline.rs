@@ -665,7 +665,8 @@ pub fn augment_scan(
 
 /// Augments every gallery scan of `gallery` into `out/<stem>/`, in parallel. Resumable: a
 /// subject whose folder has [`DONE_MARKER`] is skipped. A failed scan goes to the failure
-/// list; the batch goes on. `progress` is called after each scan (done count, total, line).
+/// list; the batch goes on. `progress` is called once before the first scan (0, total, line)
+/// and after each scan (done count, total, line).
 pub fn augment(
     gallery: &Path,
     out: &Path,
@@ -686,6 +687,7 @@ pub fn augment(
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let generic = crate::generic_face::build();
     let total = scans.len();
+    progress(0, total, &format!("{total} gallery scans"));
     let counter = std::sync::atomic::AtomicUsize::new(0);
     let results: Vec<std::result::Result<AugmentedScan, AugmentFailure>> = scans
         .par_iter()

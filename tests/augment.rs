@@ -63,7 +63,14 @@ fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
     let out = tempfile::tempdir().unwrap();
     let params = AugmentParams::default();
     let quiet = |_: usize, _: usize, _: &str| {};
-    let (done, failed) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    // The progress callback (the CLI's bar): once with 0 before any work, then each count once.
+    let calls = std::sync::Mutex::new(Vec::new());
+    let record = |k: usize, n: usize, _: &str| calls.lock().unwrap().push((k, n));
+    let (done, failed) = pipeline::augment(&data, out.path(), &params, &record).unwrap();
+    let mut calls = calls.into_inner().unwrap();
+    assert_eq!(calls[0], (0, 2));
+    calls.sort();
+    assert_eq!(calls, [(0, 2), (1, 2), (2, 2)]);
     assert_eq!(done.len() + failed.len(), 2);
     assert!(failed.is_empty(), "{failed:?}");
     let dir = out.path().join("subj000_frontal1");

@@ -14,6 +14,8 @@ pub struct SliderMeasurement {
     frame_ms: Vec<f64>,
     /// Scene rebuild per frame (18-term basis sum, normals, GPU arrays), ms.
     ui_ms: Vec<f64>,
+    /// eframe's CPU time of the previous frame (ui + tessellation + render submission, vsync wait excluded), ms.
+    cpu_ms: Vec<f64>,
     material_sent: Option<Instant>,
     material_ms: Option<f64>,
     reported: bool,
@@ -26,6 +28,7 @@ impl SliderMeasurement {
             last_frame: None,
             frame_ms: Vec::new(),
             ui_ms: Vec::new(),
+            cpu_ms: Vec::new(),
             material_sent: None,
             material_ms: None,
             reported: false,
@@ -47,7 +50,7 @@ fn stats(values: &[f64]) -> serde_json::Value {
 }
 
 /// One frame of the measurement (called at the end of `App::ui`).
-pub fn step(app: &mut EditorApp, ctx: &egui::Context) {
+pub fn step(app: &mut EditorApp, ctx: &egui::Context, cpu_usage_s: Option<f32>) {
     ctx.request_repaint();
     let idle = !app.doc.busy() && app.script.is_empty() && app.commands.is_empty();
     if let Some(error) = app.doc.error.clone() {
@@ -66,6 +69,9 @@ pub fn step(app: &mut EditorApp, ctx: &egui::Context) {
         if let Some(last) = m.last_frame {
             m.frame_ms.push((now - last).as_secs_f64() * 1e3);
             m.ui_ms.push(app.scene_build_ms);
+            if let Some(cpu) = cpu_usage_s {
+                m.cpu_ms.push(cpu as f64 * 1e3);
+            }
         }
         m.last_frame = Some(now);
         // The slider "drag": both zygomatic muscles follow a smooth ramp.
@@ -98,6 +104,7 @@ pub fn step(app: &mut EditorApp, ctx: &egui::Context) {
                 "frames": m.frame_ms.len(),
                 "frame_interval_ms": stats(&m.frame_ms),
                 "scene_rebuild_ms": stats(&m.ui_ms),
+                "frame_cpu_ms": stats(&m.cpu_ms),
                 "material_change_ms": material_ms,
                 "material_change_worker_ms": fem.millis,
             });

@@ -689,7 +689,7 @@ pub fn feature_colour(p: FeaturePoint) -> [f32; 4] {
 }
 
 impl eframe::App for EditorApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         self.shortcuts(&ctx);
         self.update_document();
@@ -701,7 +701,7 @@ impl eframe::App for EditorApp {
             });
         egui::CentralPanel::no_frame().show(ui, |ui| viewport_ui::viewport_ui(self, ui));
         if self.measure.is_some() {
-            measure::step(self, &ctx);
+            measure::step(self, &ctx, frame.info().cpu_usage);
         } else {
             self.handle_screenshot(&ctx);
         }

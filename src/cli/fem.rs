@@ -280,6 +280,7 @@ pub fn fit_expression(
     expression_landmarks: Option<&Path>,
     out: &Path,
     name: Option<&str>,
+    muscles: Option<&Path>,
 ) -> Result<serde_json::Value> {
     use crate::fem::expressions::Expression;
     use crate::fem::fit::{FitParams, fit_expression};
@@ -289,7 +290,7 @@ pub fn fit_expression(
         mesh: prepared.registration.mesh,
         feature_vertices: generic.feature_vertices,
     };
-    let model = solved_model(&face, None)?;
+    let model = solved_model(&face, muscles)?;
     let neutral_scan = prepared.denoised;
     let mut scan = io::read_mesh(expression)?;
     denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
