@@ -7,6 +7,7 @@ use crate::Mesh;
 use crate::cli::Overlay;
 use crate::feature_points::FeaturePoint;
 use crate::mesh::pick::ray_hit;
+use crate::mesh::simplify;
 use crate::render::colormap::ColourScale;
 use crate::render::{
     DrawStyle, MarkerInstance, MeshData, OrbitCamera, SceneItem, ViewportCallback,
@@ -18,6 +19,11 @@ use std::sync::Arc;
 /// Background of the viewport (linear RGB): a dark blue-grey that skin tones read well on.
 const BACKGROUND: [f32; 4] = [0.045, 0.05, 0.065, 1.0];
 const SPIKE_COLOUR: [f32; 4] = [0.95, 0.2, 0.9, 1.0];
+/// The scan under the FEM face is drawn clustered to cells of this many median edges: a
+/// quarter of the triangles (a 1 mm GavabDB grid is ~2 px on screen at the default zoom, so
+/// the full mesh adds triangles, not detail), which took ~3 ms off a software-rendered frame.
+/// Picking and every computation use the full scan.
+const UNDERLAY_CELL_EDGES: f64 = 2.0;
 
 /// Meshes of the current scene, built for the GPU once per (document version, view), not per
 /// frame.
@@ -25,8 +31,13 @@ pub struct SceneCache {
     key: SceneKey,
     /// Bumped on every rebuild: the renderer re-uploads changed meshes.
     generation: u64,
-    /// (id, data, role) — the role decides the draw style each frame.
-    meshes: Vec<(u64, Arc<MeshData>, Role)>,
+    /// (id, data, role, version) — the role decides the draw style each frame; the renderer
+    /// re-uploads a mesh when its version changes.
+    meshes: Vec<(u64, Arc<MeshData>, Role, u64)>,
+    /// The scan under the FEM face, its GPU data and version, kept across rebuilds: a slider
+    /// drag rebuilds the face every frame but never changes the scan (re-uploading its 26k
+    /// triangles each frame cost the software renderer several ms).
+    underlay: Option<(Arc<Mesh>, Arc<MeshData>, u64)>,
     legend: Option<ColourScale>,
     /// The mesh clicks are picked on (the surface shown), for placing landmarks.
     pick_surface: Option<Arc<Mesh>>,
@@ -84,10 +95,11 @@ fn scene_key(app: &EditorApp) -> SceneKey {
     }
 }
 
-fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
+fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) -> SceneCache {
     let doc = &app.doc;
     let view = &app.view;
     let mut meshes = Vec::new();
+    let mut underlay = None;
     let mut legend = None;
     let pick_surface;
     let shown_scan = doc
@@ -126,6 +138,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
                 10,
                 Arc::new(MeshData::from_mesh(&skin, colours.as_deref())),
                 Role::Main,
+                generation,
             ));
         }
         if view.layers.fat {
@@ -134,6 +147,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
                 11,
                 Arc::new(MeshData::from_mesh(&m, None)),
                 Role::Layer(FAT_COLOUR),
+                generation,
             ));
         }
         if view.layers.cranium {
@@ -142,6 +156,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
                 12,
                 Arc::new(MeshData::from_mesh(&m, None)),
                 Role::Layer(CRANIUM_COLOUR),
+                generation,
             ));
         }
         let mut segments = Vec::new();
@@ -167,10 +182,26 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
             segments.extend(muscle_arrows(fem, &doc.edits.activations, &u));
         }
         if !segments.is_empty() {
-            meshes.push((13, Arc::new(MeshData::lines(&segments)), Role::Lines));
+            meshes.push((
+                13,
+                Arc::new(MeshData::lines(&segments)),
+                Role::Lines,
+                generation,
+            ));
         }
         if let Some(scan) = &shown_scan {
-            meshes.push((1, Arc::new(MeshData::from_mesh(scan, None)), Role::Underlay));
+            let (data, version) = match previous.and_then(|p| p.underlay.as_ref()) {
+                Some((source, data, version)) if Arc::ptr_eq(source, scan) => {
+                    (data.clone(), *version)
+                }
+                _ => {
+                    let cell = UNDERLAY_CELL_EDGES * simplify::median_edge_mm(scan);
+                    let light = simplify::cluster(scan, cell);
+                    (Arc::new(MeshData::from_mesh(&light, None)), generation)
+                }
+            };
+            meshes.push((1, data.clone(), Role::Underlay, version));
+            underlay = Some((scan.clone(), data, version));
         }
         pick_surface = Some(shown_scan.clone().unwrap_or(skin));
     } else if let Some(shown) = shown_scan {
@@ -206,6 +237,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
             1,
             Arc::new(MeshData::from_mesh(&shown, colours.as_deref())),
             role,
+            generation,
         ));
         pick_surface = Some(shown);
         if let Some(r) = registered {
@@ -215,6 +247,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
                 2,
                 Arc::new(MeshData::from_mesh(&r.result.mesh, Some(&colours))),
                 Role::Registered,
+                generation,
             ));
             legend = Some(scale);
         }
@@ -223,6 +256,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
             3,
             Arc::new(MeshData::from_mesh(&doc.generic.mesh, None)),
             Role::Main,
+            generation,
         ));
         pick_surface = Some(Arc::new(doc.generic.mesh.clone()));
     }
@@ -230,6 +264,7 @@ fn build_scene(app: &EditorApp, generation: u64) -> SceneCache {
         key: scene_key(app),
         generation,
         meshes,
+        underlay,
         legend,
         pick_surface,
     }
@@ -293,7 +328,7 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     if app.scene.as_ref().is_none_or(|s| s.key != key) {
         let generation = app.scene.as_ref().map_or(1, |s| s.generation + 1);
         let start = std::time::Instant::now();
-        app.scene = Some(build_scene(app, generation));
+        app.scene = Some(build_scene(app, generation, app.scene.as_ref()));
         app.scene_build_ms = start.elapsed().as_secs_f64() * 1e3;
     }
     let rect = ui.available_rect_before_wrap();
@@ -310,10 +345,10 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     let items = scene
         .meshes
         .iter()
-        .filter(|(_, _, role)| *role != Role::Underlay || view.show_scan)
-        .map(|(id, data, role)| SceneItem {
+        .filter(|(_, _, role, _)| *role != Role::Underlay || view.show_scan)
+        .map(|(id, data, role, version)| SceneItem {
             id: *id,
-            version: scene.generation,
+            version: *version,
             data: data.clone(),
             style: match role {
                 Role::Underlay => DrawStyle {

@@ -7,6 +7,8 @@
 mod normals;
 /// Ray picking (the editor's click-on-surface).
 pub mod pick;
+/// Vertex-clustering simplification (the viewport's light copy of a dense scan).
+pub mod simplify;
 mod topology;
 
 pub use normals::{face_normal, vertex_normals};

@@ -96,6 +96,9 @@ pub struct ViewportCallback {
 
 struct GpuMesh {
     version: u64,
+    /// The arrays uploaded last (a new version with the same index arrays only rewrites the
+    /// vertex buffer: a slider drag moves vertices, never topology).
+    data: Arc<MeshData>,
     vertices: wgpu::Buffer,
     triangles: wgpu::Buffer,
     triangle_count: u32,
@@ -452,15 +455,24 @@ impl ViewportRenderer {
         });
     }
 
-    fn upload(&mut self, device: &wgpu::Device, item: &SceneItem) {
-        if self
-            .meshes
-            .get(&item.id)
-            .is_some_and(|m| m.version == item.version)
-        {
-            return;
-        }
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, item: &SceneItem) {
         let data = &item.data;
+        if let Some(m) = self.meshes.get_mut(&item.id) {
+            if m.version == item.version {
+                return;
+            }
+            let old = &m.data;
+            if !data.vertices.is_empty()
+                && old.vertices.len() == data.vertices.len()
+                && old.triangles == data.triangles
+                && old.edges == data.edges
+            {
+                queue.write_buffer(&m.vertices, 0, bytemuck::cast_slice(&data.vertices));
+                m.version = item.version;
+                m.data = data.clone();
+                return;
+            }
+        }
         let buffer = |label: &str, contents: &[u8], usage| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -477,10 +489,11 @@ impl ViewportRenderer {
         let wire_uniform = uniform_buffer(device, "wire", &DrawUniform::zeroed());
         let mesh = GpuMesh {
             version: item.version,
+            data: data.clone(),
             vertices: buffer(
                 "vertices",
                 bytemuck::cast_slice(&data.vertices),
-                wgpu::BufferUsages::VERTEX,
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
             ),
             triangles: buffer(
                 "triangles",
@@ -540,7 +553,7 @@ impl CallbackTrait for ViewportCallback {
         );
         r.frame_order.clear();
         for item in &self.items {
-            r.upload(device, item);
+            r.upload(device, queue, item);
             let mesh = &r.meshes[&item.id];
             let s = item.style;
             let colour = s
