@@ -1,6 +1,7 @@
 //! `facesynth view --measure-slider N`: the editor's responsiveness, measured in the real
 //! window. Drives the zygomatic sliders for N frames (each frame: 18-term basis sum, new GPU
-//! mesh, render) and records the interval between frames, then changes the skin modulus and
+//! mesh, render) and records the interval between frames (on a software renderer mostly the
+//! rasterizer's time) and eframe's CPU time of the UI thread, then changes the skin modulus and
 //! times the worker's refactor + basis re-solve. Prints one JSON object and closes.
 
 use super::EditorApp;
