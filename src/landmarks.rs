@@ -233,6 +233,11 @@ pub const NOSE_CORNER_OFFSET_MM: (f64, f64) = (12.0, -15.0);
 /// Our step 9: the chin walk starts this far below the mouth line, mm (below the lower lip),
 /// from every strip vertex in the [`CHIN_WALK_SEED_BAND_MM`] below that.
 pub const CHIN_WALK_START_BELOW_MOUTH_MM: f64 = 12.0;
+/// Our step 9: the walk goes no lower than Table 2's largest nose-tip-to-chin distance plus
+/// this, mm. The benchmark's chins lie up to 103.6 mm below the nose tip (an open-mouthed
+/// laugh; 81 ± 6 mm overall); with 25 mm a walk that went round a hole under the chin ended
+/// on the neck, 120 mm down.
+pub const CHIN_WALK_MARGIN_MM: f64 = 10.0;
 /// Our step 9: height of the band of walk seeds, mm. 20 mm reaches the lower lip of an open
 /// mouth (laugh), whose cavity would otherwise trap the walk: measured on expression scans,
 /// 12 mm → chin mean 6.9 mm / p95 21.7 mm, 20 mm → 5.5 / 10.4 (neutral unchanged).
@@ -830,8 +835,9 @@ impl Detector<'_> {
 
     /// Step 6: in a box per side from Table 2's nose-tip-to-mouth range (but at least
     /// [`MOUTH_BELOW_NOSE_CORNERS_MM`] below the nose corners) out to the outer eye corners,
-    /// the biggest `S < 0.25` region; the corner is its most lateral vertex near the region's
-    /// median height ([`MOUTH_CORNER_LINE_WEIGHT`]).
+    /// the biggest `S < 0.25` region; the corner is the most lateral of its vertices curved at
+    /// least as much as the region's median (the fissure, not a crease running on from it),
+    /// near the region's median height ([`MOUTH_CORNER_LINE_WEIGHT`]).
     fn mouth_corners(
         &mut self,
         frame: &Frame,
@@ -854,7 +860,19 @@ impl Detector<'_> {
                         r.iter().map(|&v| frame.uv(self.p(v as usize)).y).collect();
                     vs.sort_by(f64::total_cmp);
                     let med = vs[vs.len() / 2];
-                    self.most(&r, |p| {
+                    // The corner ends the lip fissure, the region's sharply curved part; a
+                    // shallow crease running on from it (down the cheek) must not carry the
+                    // most lateral vertex out with it.
+                    let curvedness = |v: u32| self.desc.curvedness_per_mm[v as usize];
+                    let mut cs: Vec<f64> = r.iter().map(|&v| curvedness(v)).collect();
+                    cs.sort_by(f64::total_cmp);
+                    let median_curvedness = cs[cs.len() / 2];
+                    let fissure: Vec<u32> = r
+                        .iter()
+                        .copied()
+                        .filter(|&v| curvedness(v) >= median_curvedness)
+                        .collect();
+                    self.most(&fissure, |p| {
                         let q = frame.uv(p);
                         side * q.x - MOUTH_CORNER_LINE_WEIGHT * (q.y - med).abs()
                     })
@@ -965,7 +983,7 @@ impl Detector<'_> {
     /// fitted one: the 5-ring fit smooths normals across the chin's rim and lets the walk
     /// run on down the neck.
     fn chin(&mut self, frame: &Frame, mid_u: f64, mouth_v: f64) -> usize {
-        let lowest = -NOSE_TIP_TO_CHIN.max_mm - 25.0;
+        let lowest = -NOSE_TIP_TO_CHIN.max_mm - CHIN_WALK_MARGIN_MM;
         // Start below the lower lip (whose underside faces down and would end the walk).
         let (top, band) = (
             mouth_v - CHIN_WALK_START_BELOW_MOUTH_MM,
