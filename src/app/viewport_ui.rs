@@ -24,6 +24,52 @@ const SPIKE_COLOUR: [f32; 4] = [0.95, 0.2, 0.9, 1.0];
 /// the full mesh adds triangles, not detail), which took ~3 ms off a software-rendered frame.
 /// Picking and every computation use the full scan.
 const UNDERLAY_CELL_EDGES: f64 = 2.0;
+/// Scan polygons whose corners all lie within this distance of the FEM face (and are not
+/// within two polygons of one that is farther) are left out of the underlay: the opaque face,
+/// drawn in front, hides them anyway (the software renderer
+/// still pays for every tiny hidden triangle). The scan beyond the face — hair, ears, neck,
+/// whatever the registration did not cover — stays.
+const UNDERLAY_HIDDEN_MM: f64 = 1.5;
+
+/// The scan drawn under the FEM face (see [`underlay_mesh`]), for the face it was cut for.
+struct Underlay {
+    scan: Arc<Mesh>,
+    face: Arc<Mesh>,
+    data: Arc<MeshData>,
+    version: u64,
+}
+
+/// The part of `scan` the FEM `face` does not hide, clustered for display (see
+/// [`UNDERLAY_HIDDEN_MM`], [`UNDERLAY_CELL_EDGES`]).
+fn underlay_mesh(scan: &Mesh, face: &Mesh) -> Mesh {
+    let index = crate::registration::SurfaceIndex::new(face, 4.0);
+    let covered: Vec<bool> = scan
+        .positions_mm
+        .iter()
+        .map(|&p| index.closest(p, UNDERLAY_HIDDEN_MM).is_some())
+        .collect();
+    // Two rings more than the uncovered polygons: a scan vertex just beyond the face's edge is
+    // within the distance too, and dropping it would open a gap along the outline.
+    let mut shown: Vec<bool> = covered.iter().map(|c| !c).collect();
+    for _ in 0..2 {
+        let mut grown = shown.clone();
+        for poly in scan.faces.iter() {
+            if poly.iter().any(|&v| shown[v as usize]) {
+                poly.iter().for_each(|&v| grown[v as usize] = true);
+            }
+        }
+        shown = grown;
+    }
+    let visible = scan
+        .faces
+        .iter()
+        .filter(|poly| poly.iter().any(|&v| shown[v as usize]));
+    let cut = Mesh::new(
+        scan.positions_mm.clone(),
+        crate::mesh::Polygons::from_polygons(visible),
+    );
+    simplify::cluster(&cut, UNDERLAY_CELL_EDGES * simplify::median_edge_mm(scan))
+}
 
 /// Meshes of the current scene, built for the GPU once per (document version, view), not per
 /// frame.
@@ -37,7 +83,7 @@ pub struct SceneCache {
     /// The scan under the FEM face, its GPU data and version, kept across rebuilds: a slider
     /// drag rebuilds the face every frame but never changes the scan (re-uploading its 26k
     /// triangles each frame cost the software renderer several ms).
-    underlay: Option<(Arc<Mesh>, Arc<MeshData>, u64)>,
+    underlay: Option<Underlay>,
     legend: Option<ColourScale>,
     /// The mesh clicks are picked on (the surface shown), for placing landmarks.
     pick_surface: Option<Arc<Mesh>>,
@@ -190,18 +236,26 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
             ));
         }
         if let Some(scan) = &shown_scan {
-            let (data, version) = match previous.and_then(|p| p.underlay.as_ref()) {
-                Some((source, data, version)) if Arc::ptr_eq(source, scan) => {
-                    (data.clone(), *version)
-                }
-                _ => {
-                    let cell = UNDERLAY_CELL_EDGES * simplify::median_edge_mm(scan);
-                    let light = simplify::cluster(scan, cell);
-                    (Arc::new(MeshData::from_mesh(&light, None)), generation)
-                }
+            let cached = previous
+                .and_then(|p| p.underlay.as_ref())
+                .filter(|u| Arc::ptr_eq(&u.scan, scan) && Arc::ptr_eq(&u.face, &fem.surface));
+            let (data, version) = match cached {
+                Some(u) => (u.data.clone(), u.version),
+                None => (
+                    Arc::new(MeshData::from_mesh(
+                        &underlay_mesh(scan, &fem.surface),
+                        None,
+                    )),
+                    generation,
+                ),
             };
             meshes.push((1, data.clone(), Role::Underlay, version));
-            underlay = Some((scan.clone(), data, version));
+            underlay = Some(Underlay {
+                scan: scan.clone(),
+                face: fem.surface.clone(),
+                data,
+                version,
+            });
         }
         pick_surface = Some(shown_scan.clone().unwrap_or(skin));
     } else if let Some(shown) = shown_scan {
@@ -581,4 +635,53 @@ fn legend_ui(painter: &egui::Painter, rect: egui::Rect, scale: &ColourScale) {
         egui::FontId::proportional(12.0),
         text,
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A flat `n × n`-quad grid of 1 mm spacing at height `z`, centred on the origin.
+    fn plane(n: u32, z: f64) -> Mesh {
+        let id = |i: u32, j: u32| i + (n + 1) * j;
+        let h = n as f64 / 2.0;
+        let positions = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| DVec3::new(i as f64 - h, j as f64 - h, z)))
+            .collect();
+        let faces = (0..n).flat_map(|j| {
+            (0..n).map(move |i| [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)])
+        });
+        Mesh::from_faces(positions, faces.collect::<Vec<_>>())
+    }
+
+    #[test]
+    fn the_underlay_keeps_the_scan_around_the_face_and_drops_what_the_face_hides() {
+        let scan = plane(60, 0.0);
+        // The face covers the middle 30 × 30 mm, 0.5 mm in front of the scan.
+        let face = plane(30, 0.5);
+        let under = underlay_mesh(&scan, &face);
+        let centres: Vec<DVec3> = under
+            .triangles()
+            .iter()
+            .map(|t| {
+                t.iter()
+                    .map(|&v| under.positions_mm[v as usize])
+                    .sum::<DVec3>()
+                    / 3.0
+            })
+            .collect();
+        assert!(!centres.is_empty());
+        // Nothing deep under the face survives; the ring outside it does, at a quarter of
+        // the scan's density.
+        assert!(centres.iter().all(|c| c.x.abs().max(c.y.abs()) > 13.0));
+        let ring = scan.triangles().len() as f64 * (1.0 - 0.25);
+        let kept = centres.len() as f64;
+        assert!(
+            (0.15 * ring..0.4 * ring).contains(&kept),
+            "{kept} of {ring}"
+        );
+        // A face far in front hides nothing.
+        let far = underlay_mesh(&scan, &plane(30, 5.0));
+        assert!(far.triangles().len() as f64 > 0.2 * scan.triangles().len() as f64);
+    }
 }
