@@ -805,13 +805,14 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         args.augmented.as_deref(),
         &params,
     )?;
-    let eval = crate::recognition::protocol::score(&samples, true, &params)?;
+    let in_dataset = |e: crate::Error| e.in_file(&args.dataset);
+    let eval = crate::recognition::protocol::score(&samples, true, &params).map_err(in_dataset)?;
     let mut value = serde_json::to_value(&eval.report)?;
     // With synthetic expressions, also the same probes against the plain neutral gallery.
     let without = match args.augmented {
-        Some(_) => Some(crate::recognition::protocol::score(
-            &samples, false, &params,
-        )?),
+        Some(_) => Some(
+            crate::recognition::protocol::score(&samples, false, &params).map_err(in_dataset)?,
+        ),
         None => None,
     };
     if let Some(w) = &without {

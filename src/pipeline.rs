@@ -554,6 +554,12 @@ pub fn augment_scan(
     let start = std::time::Instant::now();
     let presets = crate::fem::expressions::ExpressionSet::builtin();
     let chosen = presets.select(&params.expressions)?;
+    // Checked before the FEM work, so a bad name fails at once, not after every expression.
+    let laugh = if params.jaw_open_deg.is_empty() {
+        None
+    } else {
+        Some(presets.select(&params.laugh_base)?)
+    };
     let prepared = prepare_scan(scan, None, generic)?;
     let (surface, unfolded) = unfold_surface(&prepared.registration.mesh);
     let face = GenericFace {
@@ -563,11 +569,6 @@ pub fn augment_scan(
     let in_file = |e: Error| e.in_file(scan);
     let (mut model, thickness_factor, surface_repairs) =
         fem_model(&face, &params.fem).map_err(in_file)?;
-    // The surface the FEM was built on (locally repaired where the layers inverted).
-    let face = GenericFace {
-        mesh: model.surface.clone(),
-        feature_vertices: face.feature_vertices,
-    };
     model.factor().map_err(in_file)?;
     model
         .set_muscles(&crate::fem::muscles::MuscleSet::builtin())
@@ -582,13 +583,18 @@ pub fn augment_scan(
     if params.write_face_meshes {
         std::fs::create_dir_all(&face_dir).map_err(|e| Error::io(&face_dir, e))?;
         remove_stale_temp_files(&face_dir);
-        io::write_mesh(&face_dir.join("neutral.obj"), &face.mesh)?;
+        // The surface the FEM was built on (locally repaired where the layers inverted).
+        io::write_mesh(&face_dir.join("neutral.obj"), &model.surface)?;
     }
     let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
     let mut figures = serde_json::Map::new();
     let mut u = Vec::new();
     let mut written = 0;
-    let transfer = TransferWeights::new(&prepared.denoised, &face.mesh, params.transfer_radius_mm);
+    let transfer = TransferWeights::new(
+        &prepared.denoised,
+        &model.surface,
+        params.transfer_radius_mm,
+    );
     let intensity_tag = |m: f64| {
         if m == 1.0 {
             String::new()
@@ -613,8 +619,7 @@ pub fn augment_scan(
             figures.insert(name, serde_json::json!({ "max_displacement_mm": max }));
         }
     }
-    if !params.jaw_open_deg.is_empty() {
-        let laugh = presets.select(&params.laugh_base)?;
+    if let Some(laugh) = laugh {
         let a = laugh
             .first()
             .ok_or_else(|| Error::algorithm("augment", "no laugh base preset"))?

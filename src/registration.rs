@@ -1148,6 +1148,8 @@ pub struct SurfaceIndex {
     positions: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
     min: DVec3,
+    /// The grid's far corner (`min + dims · cell`): it covers every triangle.
+    max: DVec3,
     cell: f64,
     dims: [usize; 3],
     offsets: Vec<u32>,
@@ -1159,19 +1161,19 @@ impl SurfaceIndex {
         let triangles = mesh.triangles();
         let positions = mesh.positions_mm.clone();
         let (lo, hi) = mesh.bbox_mm().unwrap_or((DVec3::ZERO, DVec3::ZERO));
-        // Cells grow until the grid holds at most a few per triangle: a scan with one vertex
-        // far away would otherwise ask for a billion cells.
+        // Cells grow until the grid holds at most a few per triangle, and at most 1024 along
+        // any axis: a scan with one vertex far away would otherwise ask for a billion cells.
+        // (Growing the cell, not clamping the count, keeps the whole bounding box covered.)
         let budget = (4 * triangles.len()).max(1 << 12) as f64;
         let mut cell = cell_mm.max(1e-3);
         let extent = hi - lo;
-        while (0..3)
-            .map(|k| (extent[k] / cell).floor() + 1.0)
-            .product::<f64>()
-            > budget
+        let counts = |cell: f64| [0, 1, 2].map(|k| (extent[k] / cell).floor() + 1.0);
+        while counts(cell).iter().product::<f64>() > budget
+            || counts(cell).iter().any(|&n| n > 1024.0)
         {
             cell *= 2.0;
         }
-        let dims = [0, 1, 2].map(|k| ((extent[k] / cell).floor() as usize + 1).min(1024));
+        let dims = counts(cell).map(|n| n as usize);
         let cell_of = |p: DVec3| -> [usize; 3] {
             [0, 1, 2].map(|k| (((p[k] - lo[k]) / cell).floor().max(0.0) as usize).min(dims[k] - 1))
         };
@@ -1217,6 +1219,7 @@ impl SurfaceIndex {
             positions,
             triangles,
             min: lo,
+            max: lo + DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64) * cell,
             cell,
             dims,
             offsets: counts,
@@ -1237,13 +1240,7 @@ impl SurfaceIndex {
         // Nothing within reach of the grid: answer at once instead of widening the search to
         // `max_mm` over empty cells (a registration far off the scan made this slow; found by
         // fuzzing the pipeline).
-        let grid_hi = self.min
-            + DVec3::new(
-                self.dims[0] as f64,
-                self.dims[1] as f64,
-                self.dims[2] as f64,
-            ) * self.cell;
-        let outside = (self.min - p).max(p - grid_hi).max(DVec3::ZERO);
+        let outside = (self.min - p).max(p - self.max).max(DVec3::ZERO);
         if !(outside.length() <= max_mm) {
             return None;
         }

@@ -355,7 +355,7 @@ impl Document {
 
     /// Any edit since the last load or save.
     pub fn is_dirty(&self) -> bool {
-        !self.unsaved().is_empty()
+        self.edits != self.saved
     }
 
     /// Counts everything as saved (the user chose to discard the changes).

@@ -507,8 +507,8 @@ impl EditorApp {
 
     /// Holds back a close with unsaved changes and asks what to do with them.
     fn close_guard(&mut self, ctx: &egui::Context) {
-        if self.autosave_path.is_none() {
-            return; // scripted: closes when done
+        if self.scripted {
+            return; // closes when done
         }
         if ctx.input(|i| i.viewport().close_requested()) && !self.allow_close && self.doc.is_dirty()
         {

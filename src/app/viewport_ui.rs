@@ -36,7 +36,6 @@ struct Underlay {
     scan: Arc<Mesh>,
     face: Arc<Mesh>,
     data: Arc<MeshData>,
-    version: u64,
 }
 
 /// The part of `scan` the FEM `face` does not hide, clustered for display (see
@@ -64,10 +63,12 @@ fn underlay_mesh(scan: &Mesh, face: &Mesh) -> Mesh {
         .faces
         .iter()
         .filter(|poly| poly.iter().any(|&v| shown[v as usize]));
-    let cut = Mesh::new(
-        scan.positions_mm.clone(),
-        crate::mesh::Polygons::from_polygons(visible),
-    );
+    // `cluster` reads positions and faces only: no normals to compute here.
+    let cut = Mesh {
+        positions_mm: scan.positions_mm.clone(),
+        normals: Vec::new(),
+        faces: crate::mesh::Polygons::from_polygons(visible),
+    };
     simplify::cluster(&cut, UNDERLAY_CELL_EDGES * simplify::median_edge_mm(scan))
 }
 
@@ -75,11 +76,9 @@ fn underlay_mesh(scan: &Mesh, face: &Mesh) -> Mesh {
 /// frame.
 pub struct SceneCache {
     key: SceneKey,
-    /// Bumped on every rebuild: the renderer re-uploads changed meshes.
-    generation: u64,
-    /// (id, data, role, version) — the role decides the draw style each frame; the renderer
-    /// re-uploads a mesh when its version changes.
-    meshes: Vec<(u64, Arc<MeshData>, Role, u64)>,
+    /// (id, data, role) — the role decides the draw style each frame; the renderer re-uploads
+    /// a mesh when its data is a new `Arc`.
+    meshes: Vec<(u64, Arc<MeshData>, Role)>,
     /// The scan under the FEM face, its GPU data and version, kept across rebuilds: a slider
     /// drag rebuilds the face every frame but never changes the scan (re-uploading its 26k
     /// triangles each frame cost the software renderer several ms).
@@ -141,7 +140,8 @@ fn scene_key(app: &EditorApp) -> SceneKey {
     }
 }
 
-fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) -> SceneCache {
+fn build_scene(app: &EditorApp) -> SceneCache {
+    let previous = app.scene.as_ref();
     let doc = &app.doc;
     let view = &app.view;
     let mut meshes = Vec::new();
@@ -184,7 +184,6 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
                 10,
                 Arc::new(MeshData::from_mesh(&skin, colours.as_deref())),
                 Role::Main,
-                generation,
             ));
         }
         if view.layers.fat {
@@ -193,7 +192,6 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
                 11,
                 Arc::new(MeshData::from_mesh(&m, None)),
                 Role::Layer(FAT_COLOUR),
-                generation,
             ));
         }
         if view.layers.cranium {
@@ -202,7 +200,6 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
                 12,
                 Arc::new(MeshData::from_mesh(&m, None)),
                 Role::Layer(CRANIUM_COLOUR),
-                generation,
             ));
         }
         let mut segments = Vec::new();
@@ -228,33 +225,24 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
             segments.extend(muscle_arrows(fem, &doc.edits.activations, &u));
         }
         if !segments.is_empty() {
-            meshes.push((
-                13,
-                Arc::new(MeshData::lines(&segments)),
-                Role::Lines,
-                generation,
-            ));
+            meshes.push((13, Arc::new(MeshData::lines(&segments)), Role::Lines));
         }
         if let Some(scan) = &shown_scan {
             let cached = previous
                 .and_then(|p| p.underlay.as_ref())
                 .filter(|u| Arc::ptr_eq(&u.scan, scan) && Arc::ptr_eq(&u.face, &fem.surface));
-            let (data, version) = match cached {
-                Some(u) => (u.data.clone(), u.version),
-                None => (
-                    Arc::new(MeshData::from_mesh(
-                        &underlay_mesh(scan, &fem.surface),
-                        None,
-                    )),
-                    generation,
-                ),
+            let data = match cached {
+                Some(u) => u.data.clone(),
+                None => Arc::new(MeshData::from_mesh(
+                    &underlay_mesh(scan, &fem.surface),
+                    None,
+                )),
             };
-            meshes.push((1, data.clone(), Role::Underlay, version));
+            meshes.push((1, data.clone(), Role::Underlay));
             underlay = Some(Underlay {
                 scan: scan.clone(),
                 face: fem.surface.clone(),
                 data,
-                version,
             });
         }
         pick_surface = Some(shown_scan.clone().unwrap_or(skin));
@@ -291,7 +279,6 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
             1,
             Arc::new(MeshData::from_mesh(&shown, colours.as_deref())),
             role,
-            generation,
         ));
         pick_surface = Some(shown);
         if let Some(r) = registered {
@@ -301,7 +288,6 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
                 2,
                 Arc::new(MeshData::from_mesh(&r.result.mesh, Some(&colours))),
                 Role::Registered,
-                generation,
             ));
             legend = Some(scale);
         }
@@ -310,13 +296,11 @@ fn build_scene(app: &EditorApp, generation: u64, previous: Option<&SceneCache>) 
             3,
             Arc::new(MeshData::from_mesh(&doc.generic.mesh, None)),
             Role::Main,
-            generation,
         ));
         pick_surface = Some(Arc::new(doc.generic.mesh.clone()));
     }
     SceneCache {
         key: scene_key(app),
-        generation,
         meshes,
         underlay,
         legend,
@@ -380,9 +364,8 @@ fn muscle_arrows(
 pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     let key = scene_key(app);
     if app.scene.as_ref().is_none_or(|s| s.key != key) {
-        let generation = app.scene.as_ref().map_or(1, |s| s.generation + 1);
         let start = std::time::Instant::now();
-        app.scene = Some(build_scene(app, generation, app.scene.as_ref()));
+        app.scene = Some(build_scene(app));
         app.scene_build_ms = start.elapsed().as_secs_f64() * 1e3;
     }
     let rect = ui.available_rect_before_wrap();
@@ -399,10 +382,9 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     let items = scene
         .meshes
         .iter()
-        .filter(|(_, _, role, _)| *role != Role::Underlay || view.show_scan)
-        .map(|(id, data, role, version)| SceneItem {
+        .filter(|(_, _, role)| *role != Role::Underlay || view.show_scan)
+        .map(|(id, data, role)| SceneItem {
             id: *id,
-            version: *version,
             data: data.clone(),
             style: match role {
                 Role::Underlay => DrawStyle {

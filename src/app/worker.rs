@@ -102,7 +102,17 @@ impl Worker {
 /// What the worker keeps between jobs: the FEM model with its cached factorization.
 #[derive(Default)]
 pub struct WorkerState {
-    fem: Option<(u64, FaceModel, MuscleSet)>,
+    fem: Option<CachedFem>,
+}
+
+/// The FEM model of one surface, with the geometry the editor shares: a re-solve (materials,
+/// muscles) hands back the same `Arc`s, so what the viewport built for that geometry stays.
+struct CachedFem {
+    surface_id: u64,
+    model: FaceModel,
+    muscles: MuscleSet,
+    surface: Arc<Mesh>,
+    volume: Arc<crate::fem::HexMesh>,
 }
 
 impl WorkerState {
@@ -135,7 +145,7 @@ impl WorkerState {
         presets: &ExpressionSet,
     ) -> Result<FitState, String> {
         let start = Instant::now();
-        let Some((_, model, _)) = &self.fem else {
+        let Some(CachedFem { model, .. }) = &self.fem else {
             return Err("build the FEM model first".into());
         };
         let e = |e: crate::Error| e.in_file(path).to_string();
@@ -186,15 +196,19 @@ impl WorkerState {
         let e = |e: crate::Error| e.to_string();
         // Reuse the model when only materials or muscles changed; a new surface or new layer
         // thicknesses need a new volume.
-        let reusable = self.fem.as_ref().is_some_and(|(id, m, _)| {
-            *id == surface_id
-                && m.params.layers.skin_thickness_mm == params.layers.skin_thickness_mm
-                && m.params.layers.fat_thickness_mm == params.layers.fat_thickness_mm
+        let reusable = self.fem.as_ref().is_some_and(|c| {
+            c.surface_id == surface_id
+                && c.model.params.layers.skin_thickness_mm == params.layers.skin_thickness_mm
+                && c.model.params.layers.fat_thickness_mm == params.layers.fat_thickness_mm
         });
         let what;
         let mut note = String::new();
         if reusable {
-            let (_, model, old_muscles) = self.fem.as_mut().expect("checked");
+            let CachedFem {
+                model,
+                muscles: old_muscles,
+                ..
+            } = self.fem.as_mut().expect("checked");
             let materials_changed =
                 model.params.skin != params.skin || model.params.fat != params.fat;
             if materials_changed {
@@ -229,16 +243,23 @@ impl WorkerState {
             model.factor().map_err(e)?;
             model.set_muscles(&muscles).map_err(e)?;
             model.compute_basis().map_err(e)?;
-            self.fem = Some((surface_id, model, muscles.clone()));
+            self.fem = Some(CachedFem {
+                surface_id,
+                surface: Arc::new(model.surface.clone()),
+                volume: Arc::new(model.volume.clone()),
+                model,
+                muscles: muscles.clone(),
+            });
             what = "built, factored, basis solved";
         }
-        let (_, model, _) = self.fem.as_ref().expect("set above");
+        let cached = self.fem.as_ref().expect("set above");
+        let model = &cached.model;
         let basis = (0..model.muscles().len())
             .map(|i| model.basis_displacement(i).unwrap_or_default())
             .collect();
         Ok(FemState {
-            volume: Arc::new(model.volume.clone()),
-            surface: Arc::new(model.surface.clone()),
+            volume: cached.volume.clone(),
+            surface: cached.surface.clone(),
             muscles: model.muscles().to_vec(),
             basis: Arc::new(basis),
             fixed: model.fixed_nodes().to_vec(),

@@ -51,18 +51,13 @@ pub fn cluster(mesh: &Mesh, cell_mm: f64) -> Mesh {
         })
         .collect();
     let positions = sums.iter().map(|(sum, n)| *sum / *n as f64).collect();
-    let mut seen = std::collections::HashSet::new();
-    let kept: Vec<[u32; 3]> = triangles
+    let kept = triangles
         .iter()
         .map(|t| t.map(|v| remap[v as usize]))
-        .filter(|[a, b, c]| a != b && b != c && a != c)
-        .filter(|t| {
-            let mut key = *t;
-            key.sort_unstable();
-            seen.insert(key)
-        })
-        .collect();
-    Mesh::new(positions, Polygons::from_polygons(kept))
+        .filter(|[a, b, c]| a != b && b != c && a != c);
+    let mut faces = Polygons::from_polygons(kept);
+    faces.remove_duplicates();
+    Mesh::new(positions, faces)
 }
 
 #[cfg(test)]

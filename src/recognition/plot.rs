@@ -4,7 +4,7 @@
 //! Text uses the Ubuntu Light font embedded by `epaint_default_fonts` (Ubuntu Font Licence),
 //! registered with plotters' `ab_glyph` backend, so no system font library is needed.
 
-use crate::{Error, Result, io};
+use crate::{Error, Result};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -147,10 +147,7 @@ pub fn write_cmc_png(path: &Path, title: &str, curves: &[Curve], size: (u32, u32
     let buf = render_cmc(title, curves, size)?;
     let img = image::RgbImage::from_raw(size.0, size.1, buf)
         .ok_or_else(|| Error::algorithm("plot", "buffer size mismatch"))?;
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(plot_error)?;
-    io::write_atomic(path, |w| w.write_all(&png))
+    crate::fem::picture::save_png(path, &img)
 }
 
 #[cfg(test)]

@@ -17,10 +17,10 @@
 //! frontal1 and frontal2, outliers > 20°; a subject's face is not the mean face, and holes,
 //! hair and expressions change which points pair up), so rank-1 with it is 58 % against 70 %
 //! with the ground-truth pose and 20 % without any
-//! normalisation. The default pose source is now [`landmark_frame`] (the registration's rigid
+//! normalisation. The default pose source is now [`pose_from_landmarks`] on [`detect_landmarks`] (the registration's rigid
 //! fit to the generic face); this ICP is kept as a diagnostic (`--pose icp`).
 //!
-//! **Landmark pose** ([`landmark_frame`], `--pose auto`, the default): the scan is denoised
+//! **Landmark pose** ([`detect_landmarks`] then [`pose_from_landmarks`], `--pose auto`, the default): the scan is denoised
 //! (as `pipeline::prepare_scan` does), its feature points are detected, and the rotation is
 //! that of the registration's first step — Horn's absolute orientation of the generic face's
 //! feature vertices onto the detected points ([`crate::registration::horn_absolute_orientation`]);
@@ -242,7 +242,7 @@ pub fn angle_between_deg(a: DMat3, b: DMat3) -> f64 {
     c.acos().to_degrees()
 }
 
-/// Which detected feature points the landmark pose ([`landmark_frame`]) is fitted to.
+/// Which detected feature points the landmark pose ([`pose_from_landmarks`]) is fitted to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum PosePoints {
@@ -315,11 +315,6 @@ pub fn detect_landmarks(mesh: &Mesh) -> Result<Landmarks> {
     let mut denoised = mesh.clone();
     crate::denoise::denoise(&mut denoised, &crate::denoise::DenoiseParams::default())?;
     Ok(crate::pipeline::scan_landmarks(&denoised, None)?.0)
-}
-
-/// The automatic pose of a scan: [`detect_landmarks`] then [`pose_from_landmarks`].
-pub fn landmark_frame(mesh: &Mesh, generic: &GenericFace, points: PosePoints) -> Result<ScanPose> {
-    pose_from_landmarks(&detect_landmarks(mesh)?, generic, points)
 }
 
 #[cfg(test)]

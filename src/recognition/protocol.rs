@@ -109,7 +109,7 @@ pub enum PoseSource {
     Auto,
     /// The scan is denoised, its feature points detected; the nose tip is the detected one
     /// and the rotation is the registration's rigid fit of the generic face to the points
-    /// ([`super::pose::landmark_frame`]).
+    /// ([`super::pose::pose_from_landmarks`]).
     Landmarks,
     /// Diagnostic: the ground-truth nose tip and pose in the JSON beside the scan
     /// (`synth_gavab.py`); a scan without one fails.
@@ -222,7 +222,7 @@ fn truth_json(scan_path: &Path) -> Option<PathBuf> {
 }
 
 fn read_json(path: &Path) -> Result<serde_json::Value> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = io::read_text_file(path)?;
     serde_json::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))
 }
 
@@ -276,10 +276,10 @@ pub fn truth_face_from_scan(scan_path: &Path) -> Result<DMat3> {
 
 /// The nose tip and frontalising rotation of a scan from `params.pose` (before the ICP
 /// refinement of [`PoseSource::Icp`], which starts from identity). `landmarks`: the scan's
-/// feature points if already detected (augment's cache), used by [`PoseSource::Auto`].
+/// feature points if already detected (augment's cache), used by [`PoseSource::Auto`]. The
+/// mesh is read only where the pose needs it (not for cached points or the ground truth).
 pub fn scan_pose(
     scan_path: &Path,
-    mesh: &Mesh,
     params: &ProtocolParams,
     generic: &GenericFace,
     landmarks: Option<&crate::Landmarks>,
@@ -290,7 +290,7 @@ pub fn scan_pose(
             let points = match landmarks {
                 Some(l) => l,
                 None => {
-                    detected = detect_landmarks(mesh)?;
+                    detected = detect_landmarks(&io::read_mesh(scan_path)?)?;
                     &detected
                 }
             };
@@ -301,7 +301,7 @@ pub fn scan_pose(
             face_from_scan: truth_face_from_scan(scan_path)?,
         }),
         PoseSource::Identity | PoseSource::Icp => Ok(ScanPose {
-            nose_tip_in_scan: nose_tip(scan_path, mesh)?,
+            nose_tip_in_scan: nose_tip(scan_path, &io::read_mesh(scan_path)?)?,
             face_from_scan: DMat3::IDENTITY,
         }),
     }
@@ -497,7 +497,7 @@ pub struct Samples {
 fn cached_landmarks(augmented: &Path, scan: &ScanFile) -> Option<crate::Landmarks> {
     let stem = scan.path.file_stem()?.to_str()?;
     let done = augmented.join(stem).join(crate::pipeline::DONE_MARKER);
-    let v = read_json(&done).ok()?;
+    let mut v = read_json(&done).ok()?;
     let same_file = v["scan"]
         .as_str()
         .and_then(|p| std::fs::canonicalize(p).ok())
@@ -506,8 +506,7 @@ fn cached_landmarks(augmented: &Path, scan: &ScanFile) -> Option<crate::Landmark
     if !same_file {
         return None;
     }
-    let map: BTreeMap<String, [f64; 3]> = serde_json::from_value(v["landmarks"].clone()).ok()?;
-    crate::Landmarks::from_map(&map).ok()
+    serde_json::from_value(v["landmarks"].take()).ok()
 }
 
 /// Builds the range images of `dataset` and, if given, of the synthetic expressions in
@@ -558,8 +557,7 @@ pub fn collect_samples(
                 file: s.path.clone(),
                 reason: e.to_string(),
             };
-            let mesh = io::read_mesh(&s.path).map_err(fail)?;
-            scan_pose(&s.path, &mesh, params, &generic, lm.as_ref()).map_err(fail)
+            scan_pose(&s.path, params, &generic, lm.as_ref()).map_err(fail)
         })
         .collect();
     stage("start_poses");

@@ -63,11 +63,10 @@ impl Default for DrawStyle {
     }
 }
 
-/// One mesh of the scene. `id` names the GPU buffers; a new `version` re-uploads them.
+/// One mesh of the scene. `id` names the GPU buffers; new `data` (another `Arc`) re-uploads them.
 #[derive(Clone)]
 pub struct SceneItem {
     pub id: u64,
-    pub version: u64,
     pub data: Arc<MeshData>,
     pub style: DrawStyle,
 }
@@ -95,9 +94,9 @@ pub struct ViewportCallback {
 }
 
 struct GpuMesh {
-    version: u64,
-    /// The arrays uploaded last (a new version with the same index arrays only rewrites the
-    /// vertex buffer: a slider drag moves vertices, never topology).
+    /// The arrays uploaded last: the same `Arc` again is nothing to do (it is kept alive here,
+    /// so a new one cannot reuse its address); new arrays with the same index arrays only
+    /// rewrite the vertex buffer (a slider drag moves vertices, never topology).
     data: Arc<MeshData>,
     vertices: wgpu::Buffer,
     triangles: wgpu::Buffer,
@@ -458,7 +457,7 @@ impl ViewportRenderer {
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, item: &SceneItem) {
         let data = &item.data;
         if let Some(m) = self.meshes.get_mut(&item.id) {
-            if m.version == item.version {
+            if Arc::ptr_eq(&m.data, data) {
                 return;
             }
             let old = &m.data;
@@ -468,7 +467,6 @@ impl ViewportRenderer {
                 && old.edges == data.edges
             {
                 queue.write_buffer(&m.vertices, 0, bytemuck::cast_slice(&data.vertices));
-                m.version = item.version;
                 m.data = data.clone();
                 return;
             }
@@ -488,7 +486,6 @@ impl ViewportRenderer {
         let surface_uniform = uniform_buffer(device, "surface", &DrawUniform::zeroed());
         let wire_uniform = uniform_buffer(device, "wire", &DrawUniform::zeroed());
         let mesh = GpuMesh {
-            version: item.version,
             data: data.clone(),
             vertices: buffer(
                 "vertices",
