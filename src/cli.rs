@@ -207,8 +207,9 @@ pub enum Command {
         /// Comma-separated multiples of each preset's activations to write (1 = as defined).
         #[arg(long, value_delimiter = ',', default_value = "1")]
         intensities: Vec<f64>,
-        /// Comma-separated jaw-opening angles (degrees) of extra open-mouth laughs (the laugh
-        /// base preset plus a jaw rotation); empty for none.
+        /// Comma-separated jaw-opening angles (degrees) of extra open-mouth laughs: the laugh
+        /// base preset with the FEM jaw opened that much more, the mouth's inside pushed back;
+        /// empty for none.
         #[arg(long, value_delimiter = ',', num_args = 0..)]
         jaw_open_deg: Vec<f64>,
         /// The preset the open-mouth laughs start from.
@@ -315,7 +316,7 @@ pub struct EvaluateArgs {
 /// What `facesynth bench` measures.
 #[derive(Debug, Clone, Copy, Subcommand)]
 pub enum BenchWhat {
-    /// FEM face: assembly, factorization, one solve, 18-muscle basis, slider update; also with
+    /// FEM face: assembly, factorization, one solve, basis (18 muscles + jaw), slider update; also with
     /// 4× the elements and on the 53×53×3 test slab.
     Fem,
 }

@@ -120,98 +120,104 @@ pub struct AugmentParams {
     /// Each preset is also written at these multiples of its activations (default `[1]`:
     /// the presets as they are). A multiple other than 1 is written as `<name>_x<m>.ply`.
     pub intensities: Vec<f64>,
-    /// Open-mouth laughs: for each angle (degrees), the scan carrying [`Self::laugh_base`]
-    /// with the jaw opened by that angle ([`open_jaw`]), written as `laugh_jaw<deg>.ply`.
-    /// Default empty (the paper's 18 expressions only).
+    /// Open-mouth laughs: for each angle (degrees), [`Self::laugh_base`] with the FEM jaw
+    /// opened by that angle (`jaw_open`, on top of the preset's own), carried onto the scan,
+    /// with the mouth's inside pushed back ([`mouth_cavity`]); written as `laugh_jaw<deg>.ply`.
+    /// Default empty (the 18 presets only).
     pub jaw_open_deg: Vec<f64>,
     /// The FEM preset the laughs start from (default `broad_smile`).
     pub laugh_base: String,
-    /// Where the jaw rotates ([`open_jaw`]).
-    pub jaw: JawParams,
+    /// The open mouth's inside as the scanner sees it ([`mouth_cavity`]).
+    pub cavity: CavityParams,
     /// Also write the FEM face's own surfaces (`face/*.obj`, for looking at). Default true.
     pub write_face_meshes: bool,
 }
 
-/// The jaw's hinge and the lip line blend of [`open_jaw`], in the face frame (nose tip at the
-/// origin, frontal, mm).
+/// How deep the open mouth looks to the scanner ([`mouth_cavity`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct JawParams {
-    /// Hinge axis (along x) height relative to the nose tip, mm. Default −10 (about the
-    /// temporomandibular joints, at the level of the nose base).
-    pub hinge_y_mm: f64,
-    /// Hinge axis depth relative to the nose tip, mm. Default −95 (in front of the ears).
-    pub hinge_z_mm: f64,
-    /// The rotation fades in from this far above the mouth corners' line … (default 2 mm)
-    pub blend_above_mm: f64,
-    /// … to this far below it (default 10 mm): the lips stretch over the opening.
-    pub blend_below_mm: f64,
-    /// Depth of the mouth cavity pushed into the stretched lip band, mm per degree of jaw
-    /// opening (default 2.5: synth_gavab's laughs show a ~20–25 mm deep opening between the
-    /// lips for ~5–9°). 0 gives stretched, closed lips.
-    pub cavity_mm_per_deg: f64,
+pub struct CavityParams {
+    /// Deepest point of the cavity, mm per degree of jaw opening (default 2.5: synth_gavab's
+    /// laughs show a ~20–25 mm deep opening between the lips for ~5–9°). 0: none.
+    pub depth_mm_per_deg: f64,
+    /// How fast the cavity deepens inwards from the lips, mm of depth per mm of distance from
+    /// the nearest lip (default 1.5: the inner lip and the teeth behind it).
+    pub wall_slope: f64,
 }
 
-impl Default for JawParams {
+impl Default for CavityParams {
     fn default() -> Self {
-        JawParams {
-            hinge_y_mm: -10.0,
-            hinge_z_mm: -95.0,
-            blend_above_mm: 2.0,
-            blend_below_mm: 10.0,
-            cavity_mm_per_deg: 2.5,
+        CavityParams {
+            depth_mm_per_deg: 2.5,
+            wall_slope: 1.5,
         }
     }
 }
 
-/// Opens the jaw of a (neutral or expressive) scan: every vertex below the mouth turns about
-/// the hinge axis (x in the face frame of `pose`) by `angle_deg`, the chin going down and
-/// back; the angle fades in smoothly (smoothstep) across the lip line, from
-/// `blend_above_mm` above `mouth_y_mm` (the mouth corners' height in the face frame) to
-/// `blend_below_mm` below it. The upper face stays put. The stretched band between the mouth
-/// corners is pushed back into a cavity (depth `cavity_mm_per_deg × angle` at its middle,
-/// fading to 0 at the band's edges and at the corners), as the open mouth shows the inside of
-/// the mouth to the scanner. `mouth` is the mouth corners' centre (x, y) and half width in the
-/// face frame, mm. A crude stand-in for the jaw
-/// rotation the muscle model lacks (the generic face has closed lips): measured on
-/// synth_gavab's laughs (seed 8, model frame), the chin moves 8 mm down and 9 mm back,
-/// about 5° about such an axis.
-pub fn open_jaw(
-    scan: &Mesh,
-    pose: &crate::recognition::pose::ScanPose,
-    mouth: (f64, f64, f64),
-    angle_deg: f64,
-    jaw: &JawParams,
-) -> Mesh {
-    let (mouth_x_mm, mouth_y_mm, half_width_mm) = mouth;
-    let half_width_mm = half_width_mm.max(1.0);
-    use glam::DVec3;
-    let r = pose.face_from_scan;
-    let hinge = DVec3::new(0.0, jaw.hinge_y_mm, jaw.hinge_z_mm);
-    let top = mouth_y_mm + jaw.blend_above_mm;
-    let span = (jaw.blend_above_mm + jaw.blend_below_mm).max(1e-6);
-    let positions = scan
-        .positions_mm
+/// Pushes back the part of an expression-carrying scan that lies inside the FEM face's open
+/// mouth. The neutral scan's lips are closed, so carrying an open jaw onto it stretches its
+/// skin across the opening, where a real scan of an open mouth sees the inside of the mouth
+/// (teeth, tongue, shadow) far behind the lips. Every scan vertex that falls, in the face plane,
+/// inside the deformed mouth rim of `model` (the slit's boundary loop displaced by `u_mm`)
+/// moves back along the face's forward axis by `min(depth, wall_slope × distance to the rim)`,
+/// `depth = depth_mm_per_deg × jaw_deg`.
+pub fn mouth_cavity(
+    scan: &mut Mesh,
+    model: &crate::fem::FaceModel,
+    u_mm: &[glam::DVec3],
+    jaw_deg: f64,
+    params: &CavityParams,
+) -> Result<()> {
+    use glam::{DVec2, DVec3};
+    let depth = params.depth_mm_per_deg * jaw_deg;
+    if !(depth > 0.0) {
+        return Ok(());
+    }
+    let surface = &model.surface;
+    let at =
+        |p: crate::FeaturePoint| surface.positions_mm[model.feature_vertices[p.index()] as usize];
+    let frame = crate::fem::muscles::FaceFrame::new(at)?;
+    let corner = model.feature_vertices[crate::FeaturePoint::MouthCornerLeft.index()];
+    let Some(rim) = crate::generic_face::boundary_loops(surface)
+        .into_iter()
+        .find(|l| l.contains(&corner))
+    else {
+        return Err(Error::algorithm(
+            "augment",
+            "the FEM face has no mouth opening",
+        ));
+    };
+    let plane = |p: DVec3| DVec2::new(p.dot(frame.x), p.dot(frame.y));
+    let polygon: Vec<DVec2> = rim
         .iter()
-        .map(|&p| {
-            let f = r * (p - pose.nose_tip_in_scan);
-            let t = ((top - f.y) / span).clamp(0.0, 1.0);
-            let w = t * t * (3.0 - 2.0 * t);
-            if w == 0.0 {
-                return p;
-            }
-            let mut turned =
-                hinge + glam::DMat3::from_rotation_x((angle_deg * w).to_radians()) * (f - hinge);
-            // The cavity: a bump across the band, between the corners.
-            let across = ((half_width_mm - (f.x - mouth_x_mm).abs()) / (0.5 * half_width_mm))
-                .clamp(0.0, 1.0);
-            let across = across * across * (3.0 - 2.0 * across);
-            turned.z -= jaw.cavity_mm_per_deg * angle_deg * 4.0 * t * (1.0 - t) * across;
-            pose.nose_tip_in_scan + r.transpose() * turned
-        })
+        .map(|&v| plane(surface.positions_mm[v as usize] + u_mm[v as usize]))
         .collect();
-    let mut out = Mesh::new(positions, scan.faces.clone());
-    out.update_normals();
-    out
+    let (lo, hi) = polygon.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    for q in &mut scan.positions_mm {
+        let p = plane(*q);
+        if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+            continue;
+        }
+        // Even-odd rule, and the distance to the nearest rim edge.
+        let mut inside = false;
+        let mut nearest = f64::INFINITY;
+        for k in 0..polygon.len() {
+            let (a, b) = (polygon[k], polygon[(k + 1) % polygon.len()]);
+            if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x) {
+                inside = !inside;
+            }
+            let ab = b - a;
+            let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+            nearest = nearest.min((a + ab * t).distance(p));
+        }
+        if inside {
+            *q -= frame.z * depth.min(params.wall_slope * nearest);
+        }
+    }
+    scan.update_normals();
+    Ok(())
 }
 
 impl Default for AugmentParams {
@@ -224,7 +230,7 @@ impl Default for AugmentParams {
             intensities: vec![1.0],
             jaw_open_deg: Vec::new(),
             laugh_base: "broad_smile".into(),
-            jaw: JawParams::default(),
+            cavity: CavityParams::default(),
             write_face_meshes: true,
         }
     }
@@ -586,7 +592,8 @@ pub fn augment_scan(
         // The surface the FEM was built on (locally repaired where the layers inverted).
         io::write_mesh(&face_dir.join("neutral.obj"), &model.surface)?;
     }
-    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let names: Vec<String> = model.actuator_names();
+    let open = names.iter().position(|n| n == "jaw_open");
     let mut figures = serde_json::Map::new();
     let mut u = Vec::new();
     let mut written = 0;
@@ -612,7 +619,10 @@ pub fn augment_scan(
                 let mesh = model.surface.displaced(&u);
                 io::write_mesh(&face_dir.join(format!("{name}.obj")), &mesh)?;
             }
-            let on_scan = transfer.apply(&prepared.denoised, &u);
+            let mut on_scan = transfer.apply(&prepared.denoised, &u);
+            if let Some(deg) = open.map(|k| a[k]).filter(|&d| d > 0.0) {
+                mouth_cavity(&mut on_scan, &model, &u, deg, &params.cavity).map_err(in_file)?;
+            }
             io::write_mesh(&out_dir.join(format!("{name}.ply")), &on_scan)?;
             written += 1;
             let max = u.iter().map(|d| d.length()).fold(0.0, f64::max);
@@ -620,29 +630,18 @@ pub fn augment_scan(
         }
     }
     if let Some(laugh) = laugh {
-        let a = laugh
+        let mut a = laugh
             .first()
             .ok_or_else(|| Error::algorithm("augment", "no laugh base preset"))?
             .activations_for(&names)?;
-        model.combine_surface(&a, &mut u)?;
-        let smiling = transfer.apply(&prepared.denoised, &u);
-        let pose = crate::recognition::pose::pose_from_landmarks(
-            &prepared.landmarks,
-            generic,
-            crate::recognition::pose::PosePoints::Rigid,
-        )
-        .map_err(in_file)?;
-        let corner = |p| pose.face_from_scan * (prepared.landmarks.get(p) - pose.nose_tip_in_scan);
-        let left = corner(crate::FeaturePoint::MouthCornerLeft);
-        let right = corner(crate::FeaturePoint::MouthCornerRight);
-        let mouth = (
-            (left.x + right.x) / 2.0,
-            (left.y + right.y) / 2.0,
-            (left.x - right.x).abs() / 2.0,
-        );
+        let open = open.ok_or_else(|| Error::algorithm("augment", "the muscle set has no jaw"))?;
+        let base_deg = a[open];
         for &deg in &params.jaw_open_deg {
-            let mesh = open_jaw(&smiling, &pose, mouth, deg, &params.jaw);
-            io::write_mesh(&out_dir.join(format!("laugh_jaw{deg}.ply")), &mesh)?;
+            a[open] = base_deg + deg;
+            model.combine_surface(&a, &mut u)?;
+            let mut on_scan = transfer.apply(&prepared.denoised, &u);
+            mouth_cavity(&mut on_scan, &model, &u, a[open], &params.cavity).map_err(in_file)?;
+            io::write_mesh(&out_dir.join(format!("laugh_jaw{deg}.ply")), &on_scan)?;
             written += 1;
         }
     }

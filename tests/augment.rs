@@ -224,47 +224,63 @@ fn unfold_repairs_a_turned_over_quad_and_leaves_a_clean_surface_alone() {
 }
 
 #[test]
-fn open_jaw_turns_only_the_lower_face_down_and_back() {
-    // A vertical plane facing +z through the nose tip, in a scan frame turned by 90° about y
-    // (the face frame is recovered through the pose).
-    let mut face = plane(41, 3.0);
-    for p in &mut face.positions_mm {
-        *p = DVec3::new(p.x - 60.0, p.y - 90.0, 0.0);
-    }
-    let scan_from_face = glam::DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2);
-    let nose = DVec3::new(5.0, 2.0, -1200.0);
-    let scan = Mesh::from_faces(
-        face.positions_mm
-            .iter()
-            .map(|&p| nose + scan_from_face * p)
-            .collect(),
-        face.faces.iter().map(|f| f.to_vec()).collect::<Vec<_>>(),
-    );
-    let pose = facesynth::recognition::pose::ScanPose {
-        nose_tip_in_scan: nose,
-        face_from_scan: scan_from_face.transpose(),
-    };
-    let jaw = pipeline::JawParams::default();
-    let mouth = (0.0, -35.0, 25.0);
-    let out = pipeline::open_jaw(&scan, &pose, mouth, 8.0, &jaw);
-    for (f, q) in face.positions_mm.iter().zip(&out.positions_mm) {
-        let moved = pose.face_from_scan * (*q - nose) - *f;
-        if f.y >= mouth.1 + jaw.blend_above_mm {
-            assert!(moved.length() < 1e-9, "{f} moved {moved}");
-        }
-        if f.y <= -70.0 {
-            // The chin turns about the hinge: down and back, by about angle × radius.
-            assert!(moved.y < -1.0 && moved.z < -1.0, "{f}: {moved}");
-            let radius = (*f - DVec3::new(f.x, jaw.hinge_y_mm, jaw.hinge_z_mm)).length();
-            assert!((moved.length() - 8f64.to_radians() * radius).abs() < 0.05 * radius);
-        }
-    }
-    // The cavity: the middle of the lip band, between the corners, is pushed back.
-    let mid = face
-        .positions_mm
+fn an_open_jaw_pushes_back_only_the_scan_inside_the_opened_lips() {
+    use facesynth::FeaturePoint;
+    use facesynth::fem::{FaceModel, FemParams, muscles::MuscleSet};
+    let face = facesynth::generic_face::build();
+    let mut model = FaceModel::from_generic(&face, &FemParams::default()).unwrap();
+    model.set_muscles(&MuscleSet::builtin()).unwrap();
+    model.compute_basis().unwrap();
+    let open = model
+        .actuator_names()
         .iter()
-        .position(|p| p.x.abs() < 1.6 && (p.y - (mouth.1 - 4.0)).abs() < 1.6)
+        .position(|n| n == "jaw_open")
         .unwrap();
-    let moved = pose.face_from_scan * (out.positions_mm[mid] - nose) - face.positions_mm[mid];
-    assert!(moved.z < -10.0, "{moved}");
+    let deg = 10.0;
+    let u: Vec<DVec3> = model.basis_displacement(open).unwrap()[..model.surface.vertex_count()]
+        .iter()
+        .map(|d| *d * deg)
+        .collect();
+    // A closed-lipped "scan": a flat sheet over the mouth, 1 mm grid, in front of the lips.
+    let at =
+        |p: FeaturePoint| model.surface.positions_mm[model.feature_vertices[p.index()] as usize];
+    let mouth = (at(FeaturePoint::MouthCornerLeft) + at(FeaturePoint::MouthCornerRight)) * 0.5;
+    let sheet = plane(81, 1.0);
+    let origin = mouth + DVec3::new(-40.0, -40.0, 5.0);
+    let mut scan = Mesh::from_faces(
+        sheet.positions_mm.iter().map(|p| *p + origin).collect(),
+        sheet.faces.iter().map(|f| f.to_vec()).collect::<Vec<_>>(),
+    );
+    let before = scan.positions_mm.clone();
+    let frame = facesynth::fem::muscles::FaceFrame::new(at).unwrap();
+    let params = pipeline::CavityParams::default();
+    pipeline::mouth_cavity(&mut scan, &model, &u, deg, &params).unwrap();
+    let depth = params.depth_mm_per_deg * deg;
+    let (mut inside, mut deepest) = (0, 0.0f64);
+    for (b, a) in before.iter().zip(&scan.positions_mm) {
+        let d = *a - *b;
+        // Only backwards along the face's forward axis, never deeper than the cap.
+        let back = -d.dot(frame.z);
+        assert!(d.cross(frame.z).length() < 1e-9 && back >= 0.0 && back <= depth + 1e-9);
+        if back > 0.0 {
+            inside += 1;
+            deepest = deepest.max(back);
+            // Inside the opening: between the corners, below the upper lip.
+            assert!(
+                (b.x - mouth.x).abs() < (at(FeaturePoint::MouthCornerLeft).x - mouth.x).abs() + 1.0
+            );
+            assert!(b.y < mouth.y + 3.0, "{b}");
+        }
+    }
+    println!("{inside} sheet points pushed back, deepest {deepest:.1} mm (cap {depth} mm)");
+    // The lips part by ~13 mm at 10 degrees: a mouth-sized patch, deepest in its middle.
+    assert!((100..3000).contains(&inside), "{inside}");
+    assert!(deepest > 6.0, "{deepest}");
+    // With the jaw closed nothing moves.
+    let mut closed = Mesh::from_faces(
+        before.clone(),
+        sheet.faces.iter().map(|f| f.to_vec()).collect::<Vec<_>>(),
+    );
+    pipeline::mouth_cavity(&mut closed, &model, &u, 0.0, &params).unwrap();
+    assert_eq!(closed.positions_mm, before);
 }

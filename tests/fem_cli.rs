@@ -135,7 +135,8 @@ fn synthesize_on_a_registered_scan() {
     println!("{v}");
     for e in ["happiness", "surprise"] {
         let max = v["expressions"][e]["max_displacement_mm"].as_f64().unwrap();
-        assert!((1.0..15.0).contains(&max), "{e}: {max}");
+        // Surprise drops the jaw 8 degrees: the chin moves 10-20 mm on a real face.
+        assert!((1.0..25.0).contains(&max), "{e}: {max}");
     }
 }
 
@@ -174,7 +175,10 @@ fn fit_expression_writes_a_loadable_preset() {
     println!("{v}");
     assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
     assert!(v["closest_preset"].is_string());
-    assert_eq!(v["activations"].as_object().unwrap().len(), 18);
+    // 18 muscles and the jaw's three actuators.
+    let fitted = v["activations"].as_object().unwrap();
+    assert_eq!(fitted.len(), 21);
+    assert!(fitted.contains_key("jaw_open"));
     let set = facesynth::fem::expressions::ExpressionSet::load(&preset).unwrap();
     assert_eq!(set.expressions[0].name, "learned_smile");
     // The learned preset synthesizes like a built-in one.

@@ -89,8 +89,8 @@ fn left_and_right_muscles_give_mirror_symmetric_displacements() {
     let model = model();
     let n = model.surface.vertex_count();
     let mirror = mirror_map(&model.surface.positions_mm);
-    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
-    for i in (0..names.len()).step_by(2) {
+    let names: Vec<String> = model.actuator_names();
+    for i in (0..model.muscles().len()).step_by(2) {
         assert!(names[i].ends_with("_left") && names[i + 1].ends_with("_right"));
         let left = model.basis_displacement(i).unwrap();
         let right = model.basis_displacement(i + 1).unwrap();
@@ -111,10 +111,119 @@ fn left_and_right_muscles_give_mirror_symmetric_displacements() {
     }
 }
 
+/// `K u` of a full nodal displacement field (3 per node), element by element.
+fn full_stiffness_times(model: &FaceModel, u: &[DVec3]) -> Vec<DVec3> {
+    let mut out = vec![DVec3::ZERO; u.len()];
+    for (e, element) in model.volume.elements.iter().enumerate() {
+        let material = if model.volume.element_group[e] == facesynth::fem::SKIN {
+            model.params.skin
+        } else {
+            model.params.fat
+        };
+        let k = facesynth::fem::hex8::element_stiffness(
+            &model.volume.element_nodes(e),
+            material.young_modulus_pa,
+            material.poisson_ratio,
+        )
+        .unwrap();
+        let f = k * facesynth::fem::hex8::stack(&element.map(|n| u[n as usize]));
+        for (a, &n) in element.iter().enumerate() {
+            out[n as usize] += DVec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
+        }
+    }
+    out
+}
+
+#[test]
+fn the_jaw_drops_the_chin_opens_the_mouth_and_is_an_equilibrium() {
+    let model = model();
+    let names = model.actuator_names();
+    let n = model.surface.vertex_count();
+    let open = names
+        .iter()
+        .position(|a| a == "jaw_open")
+        .expect("jaw actuator");
+    assert_eq!(&names[open..], ["jaw_open", "jaw_left", "jaw_right"]);
+    let jaw = model.jaw().unwrap();
+    let u = model.basis_displacement(open).unwrap();
+    let fixed = model.fixed_nodes();
+
+    // The bone under the chin follows the rigid rotation exactly (1 degree per unit).
+    let chin = model.feature_vertices[FeaturePoint::Chin.index()] as usize;
+    let bone = 2 * n + chin;
+    assert!(fixed[bone] && jaw.weights[chin] > 0.999);
+    let rigid = jaw.axis.cross(model.volume.nodes_mm[bone] - jaw.hinge_mm) * 1f64.to_radians();
+    assert!(
+        (u[bone] - rigid).length() < 1e-12,
+        "{:?} vs {rigid:?}",
+        u[bone]
+    );
+
+    // Free nodes are in equilibrium: (K u) vanishes on every free DOF, while the fixed nodes
+    // carry the reactions that hold the jaw open.
+    let r = full_stiffness_times(&model, &u);
+    let reaction = (0..u.len())
+        .filter(|&v| fixed[v])
+        .map(|v| r[v].length())
+        .fold(0.0, f64::max);
+    let residual = (0..u.len())
+        .filter(|&v| !fixed[v])
+        .map(|v| r[v].length())
+        .fold(0.0, f64::max);
+    println!("jaw_open: reaction {reaction:.3e} N, free residual {residual:.3e} N");
+    assert!(reaction > 0.0 && residual <= 1e-9 * reaction);
+
+    // 10 degrees: the chin skin goes down and back, the lips part, the upper face stays.
+    let at = |v: usize| u[v] * 10.0;
+    let d_chin = at(chin);
+    println!("chin skin at 10 degrees: {d_chin:?}");
+    assert!(d_chin.y < -8.0 && d_chin.z < -3.0, "{d_chin:?}");
+    let p = &model.surface.positions_mm;
+    let mouth = (p[model.feature_vertices[FeaturePoint::MouthCornerLeft.index()] as usize]
+        + p[model.feature_vertices[FeaturePoint::MouthCornerRight.index()] as usize])
+        * 0.5;
+    let lip = |above: bool| {
+        (0..n)
+            .filter(|&v| (p[v].x - mouth.x).abs() < 3.0 && (p[v].y > mouth.y) == above)
+            .min_by(|&a, &b| (p[a] - mouth).length().total_cmp(&(p[b] - mouth).length()))
+            .unwrap()
+    };
+    let (upper, lower) = (lip(true), lip(false));
+    let opening = (p[upper] + at(upper)).y - (p[lower] + at(lower)).y - (p[upper].y - p[lower].y);
+    println!("the lips part by {opening:.1} mm");
+    assert!(opening > 5.0, "{opening}");
+    for point in [FeaturePoint::Forehead, FeaturePoint::InnerEyeLeft] {
+        let v = model.feature_vertices[point.index()] as usize;
+        assert!(
+            at(v).length() < 0.2 * d_chin.length(),
+            "{point:?} {:?}",
+            at(v)
+        );
+    }
+
+    // Opening is mirror-symmetric; the two sideways shifts mirror each other.
+    let mirror = mirror_map(p);
+    let left = model.basis_displacement(open + 1).unwrap();
+    let right = model.basis_displacement(open + 2).unwrap();
+    let flip = |d: DVec3| DVec3::new(-d.x, d.y, d.z);
+    for v in 0..n {
+        let m = mirror[v];
+        assert!((u[m] - flip(u[v])).length() < 1e-6, "open at {v}");
+        assert!(
+            (right[m] - flip(left[v])).length() < 1e-6,
+            "sideways at {v}"
+        );
+    }
+    assert!(
+        left[chin].x > 0.5,
+        "jaw_left moves the chin to the subject's left"
+    );
+}
+
 #[test]
 fn expressions_move_the_face_plausibly() {
     let model = model();
-    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let names: Vec<String> = model.actuator_names();
     let set = ExpressionSet::builtin();
     let corner = model.feature_vertices[FeaturePoint::MouthCornerLeft.index()] as usize;
     let mut u = Vec::new();

@@ -15,7 +15,7 @@ fn fit_recovers_a_synthesized_expression() {
     let mut model = FaceModel::from_generic(&face, &FemParams::default()).unwrap();
     model.set_muscles(&MuscleSet::builtin()).unwrap();
     model.compute_basis().unwrap();
-    let names: Vec<String> = model.muscles().iter().map(|m| m.name.clone()).collect();
+    let names: Vec<String> = model.actuator_names();
     let presets = ExpressionSet::builtin();
     let truth = presets
         .get("happiness")

@@ -103,7 +103,9 @@ pub struct FemState {
     /// The skin surface at rest (generic or registered face).
     pub surface: Arc<Mesh>,
     pub muscles: Vec<Muscle>,
-    /// Per muscle (same order): displacement of every volume node at activation 1, mm.
+    /// Actuator names in basis order: the muscles' (same order as `muscles`), then the jaw's.
+    pub actuators: Vec<String>,
+    /// Per actuator (same order): displacement of every volume node at activation 1, mm.
     pub basis: Arc<Vec<Vec<DVec3>>>,
     pub fixed: Vec<bool>,
     pub params: FemParams,
@@ -122,9 +124,9 @@ pub struct FemState {
 impl FemState {
     /// The activation vector in model order for a name → activation map (missing: 0).
     pub fn activation_vector(&self, activations: &BTreeMap<String, f64>) -> Vec<f64> {
-        self.muscles
+        self.actuators
             .iter()
-            .map(|m| activations.get(&m.name).copied().unwrap_or(0.0))
+            .map(|name| activations.get(name).copied().unwrap_or(0.0))
             .collect()
     }
 
@@ -764,7 +766,7 @@ impl Document {
             .presets
             .get(name)
             .ok_or_else(|| format!("no preset named `{name}`"))?;
-        let names = self.edits.muscles.names();
+        let names = self.edits.muscles.actuator_names();
         let a = preset.activations_for(&names).map_err(|e| e.to_string())?;
         Ok(names
             .into_iter()

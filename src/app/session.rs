@@ -160,15 +160,9 @@ impl Step {
                 value,
                 mirror,
             } => {
-                let known = |name: &str| {
-                    doc.edits.muscles.muscles.iter().any(|d| {
-                        [format!("{}_left", d.name), format!("{}_right", d.name)]
-                            .iter()
-                            .any(|n| n == name)
-                    })
-                };
-                if !known(muscle) {
-                    return Err(format!("no muscle named {muscle:?}"));
+                // Muscles and the jaw's actuators alike.
+                if !doc.edits.muscles.actuator_names().contains(muscle) {
+                    return Err(format!("no muscle or jaw actuator named {muscle:?}"));
                 }
                 let mut a = doc.edits.activations.clone();
                 a.insert(muscle.clone(), *value);

@@ -170,11 +170,11 @@ impl WorkerState {
         Ok(FitState {
             name,
             activations: model
-                .muscles()
-                .iter()
+                .actuator_names()
+                .into_iter()
                 .zip(&fit.activations)
                 .filter(|(_, a)| **a > 0.0)
-                .map(|(m, a)| (m.name.clone(), *a))
+                .map(|(name, a)| (name, *a))
                 .collect(),
             rms_before_mm: fit.rms_before_mm,
             rms_after_mm: fit.rms_after_mm,
@@ -254,13 +254,14 @@ impl WorkerState {
         }
         let cached = self.fem.as_ref().expect("set above");
         let model = &cached.model;
-        let basis = (0..model.muscles().len())
+        let basis = (0..model.actuator_count())
             .map(|i| model.basis_displacement(i).unwrap_or_default())
             .collect();
         Ok(FemState {
             volume: cached.volume.clone(),
             surface: cached.surface.clone(),
             muscles: model.muscles().to_vec(),
+            actuators: model.actuator_names(),
             basis: Arc::new(basis),
             fixed: model.fixed_nodes().to_vec(),
             params: model.params,

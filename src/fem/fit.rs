@@ -246,7 +246,7 @@ pub fn fit_expression(
         ))
         .into());
     }
-    let m = model.muscles().len();
+    let m = model.actuator_count();
     let basis: Vec<Vec<DVec3>> = (0..m)
         .map(|i| model.basis_displacement(i).expect("basis"))
         .collect();
@@ -257,7 +257,7 @@ pub fn fit_expression(
         .map(|ni| rms_to_scan(model, ni, &vertices, &zero, params.max_distance_mm));
     let mut best = (
         rms_before_mm,
-        vec![0.0; model.muscles().len()],
+        vec![0.0; model.actuator_count()],
         aligned.clone(),
     );
     let mut activations = vec![0.0; m];
@@ -311,7 +311,7 @@ pub fn fit_expression(
     }
     let (rms_after_mm, activations, aligned) = best;
     let index = SurfaceIndex::new(&aligned, 4.0);
-    let names: Vec<String> = model.muscles().iter().map(|mu| mu.name.clone()).collect();
+    let names: Vec<String> = model.actuator_names();
     let mut closest_preset: Option<(String, f64)> = None;
     let mut w = Vec::new();
     for e in &presets.expressions {

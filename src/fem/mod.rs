@@ -6,6 +6,9 @@
 //! [`muscles`] turn 18 feature-point-relative muscle definitions into nodal forces; the muscle
 //! basis `u_i = K⁻¹ f_i` is solved once, after which any expression
 //! ([`expressions`]) is `u = Σ a_i u_i` — a slider change is an 18-term sum, not a solve.
+//! [`jaw`] adds three actuators after the muscles (open, left, right): prescribed motions of
+//! the bone under the lower face, solved into basis vectors the same way (`K_ff u_f = −K_fp
+//! u_p`), so an expression is an 18 + 3-term sum.
 //!
 //! **Units:** positions and displacements mm, forces N, Young's moduli Pa (converted to
 //! N/mm² = MPa inside [`hex8`]), so stiffness is N/mm.
@@ -18,6 +21,7 @@ pub mod assembly;
 pub mod expressions;
 pub mod fit;
 pub mod hex8;
+pub mod jaw;
 pub mod layers;
 pub mod muscles;
 pub mod picture;
@@ -189,7 +193,10 @@ pub struct FaceModel {
     system: ReducedSystem,
     solver: CachedCholesky,
     muscles: Vec<Muscle>,
-    /// Per muscle: full nodal displacement (3 per node, mm) at unit activation; empty if stale.
+    /// The jaw's actuators, after the muscles (none if the muscle set defines no jaw).
+    jaw: Option<jaw::Jaw>,
+    /// Per actuator (muscles, then the jaw's): full nodal displacement (3 per node, mm) at unit
+    /// activation; empty if stale.
     basis: Vec<Vec<f64>>,
     pub timings: Timings,
 }
@@ -247,6 +254,7 @@ impl FaceModel {
             system,
             solver,
             muscles: Vec::new(),
+            jaw: None,
             basis: Vec::new(),
             timings: Timings {
                 extrusion_millis,
@@ -370,11 +378,81 @@ impl FaceModel {
         Ok(unflatten(&out))
     }
 
-    /// Resolves the muscle definitions against this face's feature points and drops the basis.
+    /// Resolves the muscle (and jaw) definitions against this face's feature points and drops
+    /// the basis.
     pub fn set_muscles(&mut self, set: &MuscleSet) -> Result<()> {
         self.muscles = set.resolve(self)?;
+        self.jaw = set.jaw.as_ref().map(|def| def.resolve(self)).transpose()?;
         self.basis.clear();
         Ok(())
+    }
+
+    /// The resolved jaw, if the muscle set defines one.
+    pub fn jaw(&self) -> Option<&jaw::Jaw> {
+        self.jaw.as_ref()
+    }
+
+    /// Actuator names in basis / activation order: the muscles, then `jaw_open`, `jaw_left`,
+    /// `jaw_right` when there is a jaw.
+    pub fn actuator_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.muscles.iter().map(|m| m.name.clone()).collect();
+        if self.jaw.is_some() {
+            names.extend(jaw::ACTUATORS.iter().map(|s| s.to_string()));
+        }
+        names
+    }
+
+    /// Number of actuators (length of an activation vector).
+    pub fn actuator_count(&self) -> usize {
+        self.muscles.len()
+            + if self.jaw.is_some() {
+                jaw::ACTUATORS.len()
+            } else {
+                0
+            }
+    }
+
+    /// The reduced right-hand side `−K_fp u_p` of prescribed displacements `u_p` on fixed
+    /// nodes, element by element (only elements that touch a moving node).
+    fn prescribed_rhs(&self, prescribed: &[DVec3]) -> Result<Vec<f64>> {
+        use rayon::prelude::*;
+        let touched: Vec<usize> = (0..self.volume.elements.len())
+            .filter(|&e| {
+                self.volume.elements[e]
+                    .iter()
+                    .any(|&n| prescribed[n as usize] != DVec3::ZERO)
+            })
+            .collect();
+        let loads: Vec<(usize, nalgebra::SVector<f64, 24>)> = touched
+            .par_iter()
+            .map(|&e| {
+                let material = match self.volume.element_group[e] {
+                    SKIN => self.params.skin,
+                    _ => self.params.fat,
+                };
+                let k = hex8::element_stiffness(
+                    &self.volume.element_nodes(e),
+                    material.young_modulus_pa,
+                    material.poisson_ratio,
+                )
+                .map_err(|_| {
+                    crate::Error::from(FemError::Definition(format!(
+                        "element {e} is invalid under the jaw"
+                    )))
+                })?;
+                let u = hex8::stack(&self.volume.elements[e].map(|n| prescribed[n as usize]));
+                Ok((e, k * u))
+            })
+            .collect::<Result<_>>()?;
+        let mut full = vec![0.0; 3 * self.volume.nodes_mm.len()];
+        for (e, f) in loads {
+            for (a, &node) in self.volume.elements[e].iter().enumerate() {
+                for axis in 0..3 {
+                    full[3 * node as usize + axis] -= f[3 * a + axis];
+                }
+            }
+        }
+        Ok(self.system.restrict(&full))
     }
 
     /// The resolved muscles (empty until [`set_muscles`](Self::set_muscles)).
@@ -393,20 +471,38 @@ impl FaceModel {
         self.ensure_factored()?;
         let start = Instant::now();
         let dim = self.system.dofs();
-        let count = self.muscles.len();
+        let count = self.actuator_count();
         let mut rhs = vec![0.0; dim * count];
         for (i, muscle) in self.muscles.iter().enumerate() {
             let full = flatten(&muscle.nodal_forces(self.volume.nodes_mm.len()));
             rhs[i * dim..(i + 1) * dim].copy_from_slice(&self.system.restrict(&full));
         }
+        let mut prescribed = Vec::new();
+        if let Some(jaw) = &self.jaw {
+            for k in 0..jaw::ACTUATORS.len() {
+                let u_p = jaw.prescribed(k, &self.volume, &self.fixed);
+                let i = self.muscles.len() + k;
+                rhs[i * dim..(i + 1) * dim].copy_from_slice(&self.prescribed_rhs(&u_p)?);
+                prescribed.push(u_p);
+            }
+        }
         if count > 0 {
             self.solver.solve_many_in_place(&mut rhs, count)?;
         }
         let n3 = 3 * self.volume.nodes_mm.len();
+        let muscles = self.muscles.len();
         self.basis = (0..count)
             .map(|i| {
                 let mut full = vec![0.0; n3];
                 self.system.extend(&rhs[i * dim..(i + 1) * dim], &mut full);
+                // The jaw's fixed nodes move by their prescribed displacement.
+                if let Some(u_p) = i.checked_sub(muscles).map(|k| &prescribed[k]) {
+                    for (node, d) in u_p.iter().enumerate() {
+                        if self.fixed[node] {
+                            full[3 * node..3 * node + 3].copy_from_slice(&d.to_array());
+                        }
+                    }
+                }
                 full
             })
             .collect();
@@ -414,9 +510,9 @@ impl FaceModel {
         Ok(())
     }
 
-    /// Whether the basis matches the current muscles, materials and fixed nodes.
+    /// Whether the basis matches the current muscles, jaw, materials and fixed nodes.
     pub fn has_basis(&self) -> bool {
-        self.basis.len() == self.muscles.len() && !self.muscles.is_empty()
+        self.basis.len() == self.actuator_count() && !self.muscles.is_empty()
     }
 
     /// Replaces muscle `index` (e.g. a new force direction or magnitude) and re-solves only its
@@ -435,9 +531,10 @@ impl FaceModel {
         Ok(())
     }
 
-    /// Per muscle: the displacement (mm) of every volume node at unit activation.
-    pub fn basis_displacement(&self, muscle: usize) -> Option<Vec<DVec3>> {
-        self.basis.get(muscle).map(|b| unflatten(b))
+    /// Per actuator (muscles, then the jaw's): the displacement (mm) of every volume node at
+    /// unit activation.
+    pub fn basis_displacement(&self, actuator: usize) -> Option<Vec<DVec3>> {
+        self.basis.get(actuator).map(|b| unflatten(b))
     }
 
     fn check_activations(&self, activations: &[f64]) -> Result<()> {
@@ -447,10 +544,11 @@ impl FaceModel {
             )
             .into());
         }
-        if activations.len() != self.muscles.len() || activations.iter().any(|a| !a.is_finite()) {
+        if activations.len() != self.actuator_count() || activations.iter().any(|a| !a.is_finite())
+        {
             return Err(FemError::Definition(format!(
                 "need {} finite activations, got {}",
-                self.muscles.len(),
+                self.actuator_count(),
                 activations.len()
             ))
             .into());

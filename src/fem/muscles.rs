@@ -61,6 +61,9 @@ pub struct MuscleDef {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MuscleSet {
     pub muscles: Vec<MuscleDef>,
+    /// The jaw's actuators (`jaw_open`, `jaw_left`, `jaw_right`); none if absent.
+    #[serde(default)]
+    pub jaw: Option<super::jaw::JawDef>,
 }
 
 /// A muscle resolved on one face: its skin nodes and their forces at unit activation.
@@ -173,6 +176,9 @@ impl MuscleSet {
                 ));
             }
         }
+        if let Some(jaw) = &set.jaw {
+            jaw.check().map_err(|why| Error::invalid(path, why))?;
+        }
         Ok(set)
     }
 
@@ -187,6 +193,15 @@ impl MuscleSet {
             .iter()
             .flat_map(|d| [format!("{}_left", d.name), format!("{}_right", d.name)])
             .collect()
+    }
+
+    /// Actuator names in basis order: the muscles, then the jaw's (if defined).
+    pub fn actuator_names(&self) -> Vec<String> {
+        let mut names = self.names();
+        if self.jaw.is_some() {
+            names.extend(super::jaw::ACTUATORS.iter().map(|s| s.to_string()));
+        }
+        names
     }
 
     /// Resolves every muscle on `model`'s surface (left then right per pair).
@@ -258,7 +273,7 @@ impl MuscleSet {
 
 /// The skin point "under" `target` seen along the face's forward axis: the forward-facing
 /// surface vertex closest to `target` in the face plane.
-fn snap_to_skin(surface: &crate::Mesh, frame: &FaceFrame, target: DVec3) -> DVec3 {
+pub(super) fn snap_to_skin(surface: &crate::Mesh, frame: &FaceFrame, target: DVec3) -> DVec3 {
     let mut best = (f64::INFINITY, target);
     for (p, n) in surface.positions_mm.iter().zip(&surface.normals) {
         if n.dot(frame.z) < 0.2 {

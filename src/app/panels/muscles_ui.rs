@@ -1,6 +1,6 @@
-//! Muscles panel: 18 activation sliders (instant preview through the muscle basis), mirror
-//! left↔right, and each pair's definition (force, insertion, origin, radius), which re-solves
-//! that basis on the worker with the cached factorization.
+//! Muscles panel: 18 activation sliders and the jaw's three (instant preview through the
+//! basis), mirror left↔right, and each pair's definition (force, insertion, origin, radius),
+//! which re-solves that basis on the worker with the cached factorization.
 
 use super::super::EditorApp;
 use super::super::document::Command;
@@ -43,6 +43,31 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     }
                     ui.end_row();
                 }
+            }
+            // The jaw is bone, not a muscle: degrees and millimetres, never mirrored (jaw_left
+            // and jaw_right are opposite shifts).
+            let fem = app.doc.fem.as_ref().expect("checked above");
+            for (name, range, unit) in [
+                ("jaw_open", 0.0..=25.0, "°"),
+                ("jaw_left", 0.0..=8.0, " mm"),
+                ("jaw_right", 0.0..=8.0, " mm"),
+            ] {
+                if !fem.actuators.iter().any(|a| a == name) {
+                    continue;
+                }
+                let mut a = activations.get(name).copied().unwrap_or(0.0);
+                ui.label(name);
+                let r = ui.add(
+                    egui::Slider::new(&mut a, range)
+                        .fixed_decimals(1)
+                        .suffix(unit),
+                );
+                started |= super::edit_phase(&r).0;
+                if r.changed() {
+                    changed = true;
+                    activations.insert(name.to_string(), a);
+                }
+                ui.end_row();
             }
         });
     if started {
