@@ -201,6 +201,10 @@ pub enum Command {
         /// `all` or a comma-separated list of preset names.
         #[arg(long, default_value = "all")]
         expressions: String,
+        /// Extra presets (RON, like assets/expressions.ron, e.g. from `fit-expression`); same
+        /// names replace built-ins, new names are added to `all`.
+        #[arg(long)]
+        presets: Option<PathBuf>,
         /// File-name stem suffix of the neutral gallery scans.
         #[arg(long, default_value = "_frontal1")]
         suffix: String,
@@ -595,6 +599,7 @@ pub fn run(cli: Cli) -> Result<()> {
             gallery,
             out,
             expressions,
+            presets,
             suffix,
             intensities,
             jaw_open_deg,
@@ -604,6 +609,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let params = crate::pipeline::AugmentParams {
                 gallery_suffix: suffix,
                 expressions,
+                presets: fem::expression_set(presets.as_deref())?,
                 intensities,
                 jaw_open_deg,
                 laugh_base,

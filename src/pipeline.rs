@@ -112,6 +112,9 @@ pub struct AugmentParams {
     pub gallery_suffix: String,
     /// `all` or a comma-separated list of preset names (default `all`: the 18 presets).
     pub expressions: String,
+    /// The presets to choose from (default: the 18 built-ins; `augment --presets FILE` adds or
+    /// replaces some, e.g. expressions learned with `fit-expression`).
+    pub presets: crate::fem::expressions::ExpressionSet,
     /// Materials and layers of the FEM face (default: the paper's).
     pub fem: crate::fem::FemParams,
     /// Reach of the expression transfer onto the scan, mm (default 8: about three of the
@@ -225,6 +228,7 @@ impl Default for AugmentParams {
         AugmentParams {
             gallery_suffix: "_frontal1".into(),
             expressions: "all".into(),
+            presets: crate::fem::expressions::ExpressionSet::builtin(),
             fem: crate::fem::FemParams::default(),
             transfer_radius_mm: 8.0,
             intensities: vec![1.0],
@@ -558,7 +562,7 @@ pub fn augment_scan(
     params: &AugmentParams,
 ) -> Result<AugmentedScan> {
     let start = std::time::Instant::now();
-    let presets = crate::fem::expressions::ExpressionSet::builtin();
+    let presets = &params.presets;
     let chosen = presets.select(&params.expressions)?;
     // Checked before the FEM work, so a bad name fails at once, not after every expression.
     let laugh = if params.jaw_open_deg.is_empty() {

@@ -199,3 +199,30 @@ fn fit_expression_writes_a_loadable_preset() {
             > 0.5
     );
 }
+
+#[test]
+fn fit_expression_learns_an_open_jaw_and_repairs_folds_like_augment() {
+    // Seed 100's subject 4: its registered face has folded quads (a projection across a hole's
+    // rim), which inverted the layers in fit-expression while augment repaired them.
+    let data = common::synth_dataset(6, 100, false);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("laugh.ron");
+    let v = run(&[
+        "fit-expression",
+        data.join("subj004_frontal1.wrl").to_str().unwrap(),
+        data.join("subj004_risa.wrl").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    println!("{v}");
+    let repairs = &v["repairs"];
+    assert!(repairs["unfolded_vertices"].is_u64() && repairs["layer_thickness_factor"].is_f64());
+    let (before, after) = (
+        v["rms_before_mm"].as_f64().unwrap(),
+        v["rms_after_mm"].as_f64().unwrap(),
+    );
+    assert!(after < 0.8 * before, "{before} -> {after}");
+    // The laugh opens the mouth (ground truth: jawOpen 0.25-0.55 of the ICT model's range).
+    let jaw = v["activations"]["jaw_open"].as_f64().unwrap();
+    assert!(jaw > 2.0, "jaw_open {jaw} degrees");
+}

@@ -33,9 +33,39 @@ pub fn expression_set(user: Option<&Path>) -> Result<ExpressionSet> {
     Ok(set)
 }
 
-/// Builds, factors and solves the muscle basis.
-pub fn solved_model(face: &GenericFace, muscles: Option<&Path>) -> Result<FaceModel> {
-    let mut model = FaceModel::from_generic(face, &FemParams::default())?;
+/// What [`solved_model`] changed to get valid layers under a registered face (all zero / 1 on
+/// the generic face), for the reports.
+fn repairs_json(r: &Repairs) -> serde_json::Value {
+    json!({
+        "unfolded_vertices": r.unfolded_vertices,
+        "layer_thickness_factor": r.layer_thickness_factor,
+        "local_surface_repairs": r.local_surface_repairs,
+    })
+}
+
+/// See [`repairs_json`].
+pub struct Repairs {
+    pub unfolded_vertices: usize,
+    pub layer_thickness_factor: f64,
+    pub local_surface_repairs: usize,
+}
+
+/// Builds, factors and solves the muscle basis, through the same repairs as `augment` and the
+/// editor (folded quads unfolded, then thinner layers or local smoothing where the layers
+/// would invert), so every command accepts the scans `augment` accepts.
+pub fn solved_model(face: &GenericFace, muscles: Option<&Path>) -> Result<(FaceModel, Repairs)> {
+    let (surface, unfolded_vertices) = crate::pipeline::unfold_surface(&face.mesh);
+    let face = GenericFace {
+        mesh: surface,
+        feature_vertices: face.feature_vertices,
+    };
+    let (mut model, layer_thickness_factor, local_surface_repairs) =
+        crate::pipeline::fem_model(&face, &FemParams::default())?;
+    let repairs = Repairs {
+        unfolded_vertices,
+        layer_thickness_factor,
+        local_surface_repairs,
+    };
     model.factor()?;
     let set = match muscles {
         Some(path) => MuscleSet::load(path)?,
@@ -43,7 +73,7 @@ pub fn solved_model(face: &GenericFace, muscles: Option<&Path>) -> Result<FaceMo
     };
     model.set_muscles(&set)?;
     model.compute_basis()?;
-    Ok(model)
+    Ok((model, repairs))
 }
 
 fn round(x: f64, digits: i32) -> f64 {
@@ -64,7 +94,7 @@ pub fn synthesize(
     let face = face_for(scan, landmarks)?;
     let set = expression_set(presets)?;
     let selected = set.select(expressions)?;
-    let model = solved_model(&face, muscles)?;
+    let (model, repairs) = solved_model(&face, muscles)?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     io::write_mesh(&out.join("neutral.obj"), &model.surface)?;
     let names: Vec<String> = model.actuator_names();
@@ -96,6 +126,7 @@ pub fn synthesize(
         "thinned_vertices": model.extrusion.thinned_vertices,
         "min_thickness_factor": round(model.extrusion.min_thickness_factor, 4),
         "mean_scaled_jacobian": round(model.quality.mean_scaled_jacobian, 4),
+        "repairs": repairs_json(&repairs),
         "expressions": report,
     });
     io::write_text_atomic(
@@ -121,7 +152,7 @@ pub fn export_fem(
             set.names().join(", ")
         )
     })?;
-    let model = solved_model(&face, None)?;
+    let (model, _) = solved_model(&face, None)?;
     let names: Vec<String> = model.actuator_names();
     let a = e.activations_for(&names)?;
     let u = model.combine_volume(&a)?;
@@ -292,7 +323,7 @@ pub fn fit_expression(
         mesh: prepared.registration.mesh,
         feature_vertices: generic.feature_vertices,
     };
-    let model = solved_model(&face, muscles)?;
+    let (model, repairs) = solved_model(&face, muscles)?;
     let neutral_scan = prepared.denoised;
     let mut scan = io::read_mesh(expression)?;
     denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
@@ -346,6 +377,7 @@ pub fn fit_expression(
         "rms_before_mm": round(fit.rms_before_mm, 4),
         "rms_after_mm": round(fit.rms_after_mm, 4),
         "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
+        "repairs": repairs_json(&repairs),
         "closest_preset": closest,
         "closest_preset_rms_mm": closest_rms,
         "vertices_used": fit.vertices_used,
