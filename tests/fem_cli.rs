@@ -175,9 +175,9 @@ fn fit_expression_writes_a_loadable_preset() {
     println!("{v}");
     assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
     assert!(v["closest_preset"].is_string());
-    // 18 muscles and the jaw's three actuators.
+    // 18 muscles and the jaw's four actuators.
     let fitted = v["activations"].as_object().unwrap();
-    assert_eq!(fitted.len(), 21);
+    assert_eq!(fitted.len(), 22);
     assert!(fitted.contains_key("jaw_open"));
     let set = facesynth::fem::expressions::ExpressionSet::load(&preset).unwrap();
     assert_eq!(set.expressions[0].name, "learned_smile");

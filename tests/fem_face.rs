@@ -143,7 +143,10 @@ fn the_jaw_drops_the_chin_opens_the_mouth_and_is_an_equilibrium() {
         .iter()
         .position(|a| a == "jaw_open")
         .expect("jaw actuator");
-    assert_eq!(&names[open..], ["jaw_open", "jaw_left", "jaw_right"]);
+    assert_eq!(
+        &names[open..],
+        ["jaw_open", "jaw_left", "jaw_right", "jaw_forward"]
+    );
     let jaw = model.jaw().unwrap();
     let u = model.basis_displacement(open).unwrap();
     let fixed = model.fixed_nodes();
@@ -218,6 +221,18 @@ fn the_jaw_drops_the_chin_opens_the_mouth_and_is_an_equilibrium() {
         left[chin].x > 0.5,
         "jaw_left moves the chin to the subject's left"
     );
+    let forward = model.basis_displacement(open + 3).unwrap();
+    for v in 0..n {
+        assert!(
+            (forward[mirror[v]] - flip(forward[v])).length() < 1e-6,
+            "forward at {v}"
+        );
+    }
+    assert!(
+        forward[chin].dot(jaw.forward) > 0.5,
+        "jaw_forward moves the chin forward"
+    );
+    assert!(forward[upper].length() < 0.5 * forward[lower].length());
 }
 
 #[test]

@@ -217,7 +217,7 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "symbolic_analysis_millis": round(model.timings.analysis_millis, 3),
         "factorization_millis": factor_millis,
         "one_solve_millis": solve_millis,
-        // The whole basis: 18 muscles plus the jaw's 3 prescribed motions.
+        // The whole basis: 18 muscles plus the jaw's 4 prescribed motions.
         "actuators": model.actuator_count(),
         "basis_millis": basis_millis,
         "factor_plus_basis_millis": round(factor_millis + basis_millis, 3),

@@ -153,7 +153,7 @@ mod tests {
         assert_eq!(muscles.names().len(), 18);
         // The presets may also open the jaw (`jaw_open`, degrees).
         let names = muscles.actuator_names();
-        assert_eq!(names.len(), 21);
+        assert_eq!(names.len(), 22);
         for e in &set.expressions {
             let a = e.activations_for(&names).unwrap();
             assert!(a.iter().any(|&x| x > 0.0), "{}", e.name);

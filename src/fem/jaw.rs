@@ -2,10 +2,10 @@
 //!
 //! Waters' 18 linear muscles cannot open the mouth: in a laugh, a yawn or surprise the chin drops
 //! because the mandible rotates, and the soft tissue follows the bone. The model therefore gets
-//! three jaw actuators besides the muscles, each a **prescribed displacement** of the fixed
+//! four jaw actuators besides the muscles, each a **prescribed displacement** of the fixed
 //! nodes over the mandible (the cranium layer under the lower face, and the border nodes there),
 //! solved like a muscle into a basis vector (`K_ff u_f = −K_fp u_p`), so a jaw slider is still an
-//! 18 + 3-term sum:
+//! 18 + 4-term sum:
 //!
 //! * `jaw_open` — rotation about the effective opening axis, **degrees** per unit. The axis is
 //!   parallel to the face's x̂ (ear to ear) through the [`JawDef::hinge`] anchor. Real opening
@@ -15,6 +15,9 @@
 //!   chin's radius from the hinge).
 //! * `jaw_left` / `jaw_right` — sideways shift towards the subject's left / right, **mm** per unit
 //!   (FACS AU30), two non-negative actuators so fits stay non-negative and the pair mirrors.
+//! * `jaw_forward` — thrust along the face's forward axis ẑ, **mm** per unit (FACS AU29). Fitting
+//!   cara1's smile chose 4.4 mm of it (RMS 2.31 → 2.11 mm): that scan's lower face stands 2–6 mm
+//!   in front of its neutral scan, which no muscle pull along the skin produces.
 //!
 //! **Which bone moves.** A surface vertex lies over the mandible when it is below the mouth-corner
 //! line (by [`JawDef::below_mouth`] face units of y). The mouth is a slit whose two lips are
@@ -33,7 +36,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 /// Actuator names, in basis order after the muscles.
-pub const ACTUATORS: [&str; 3] = ["jaw_open", "jaw_left", "jaw_right"];
+pub const ACTUATORS: [&str; 4] = ["jaw_open", "jaw_left", "jaw_right", "jaw_forward"];
 
 /// The jaw's definition (in `assets/muscles.ron`, relative to the feature points).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -59,6 +62,8 @@ pub struct Jaw {
     pub hinge_mm: DVec3,
     /// The opening axis and the sideways direction: the face's x̂ (towards the subject's left).
     pub axis: DVec3,
+    /// The face's forward axis ẑ (jaw thrust).
+    pub forward: DVec3,
     /// Per surface vertex: the share of the mandible's motion the bone under it follows, 0–1.
     pub weights: Vec<f64>,
 }
@@ -119,6 +124,7 @@ impl JawDef {
         Ok(Jaw {
             hinge_mm,
             axis: frame.x,
+            forward: frame.z,
             weights,
         })
     }
@@ -141,7 +147,8 @@ impl Jaw {
                 let unit = match k {
                     0 => self.axis.cross(p - self.hinge_mm) * 1f64.to_radians(),
                     1 => self.axis,
-                    _ => -self.axis,
+                    2 => -self.axis,
+                    _ => self.forward,
                 };
                 unit * w
             })

@@ -6,9 +6,9 @@
 //! [`muscles`] turn 18 feature-point-relative muscle definitions into nodal forces; the muscle
 //! basis `u_i = K⁻¹ f_i` is solved once, after which any expression
 //! ([`expressions`]) is `u = Σ a_i u_i` — a slider change is an 18-term sum, not a solve.
-//! [`jaw`] adds three actuators after the muscles (open, left, right): prescribed motions of
+//! [`jaw`] adds four actuators after the muscles (open, left, right, forward): prescribed motions of
 //! the bone under the lower face, solved into basis vectors the same way (`K_ff u_f = −K_fp
-//! u_p`), so an expression is an 18 + 3-term sum.
+//! u_p`), so an expression is an 18 + 4-term sum.
 //!
 //! **Units:** positions and displacements mm, forces N, Young's moduli Pa (converted to
 //! N/mm² = MPa inside [`hex8`]), so stiffness is N/mm.
@@ -393,7 +393,7 @@ impl FaceModel {
     }
 
     /// Actuator names in basis / activation order: the muscles, then `jaw_open`, `jaw_left`,
-    /// `jaw_right` when there is a jaw.
+    /// `jaw_right`, `jaw_forward` when there is a jaw.
     pub fn actuator_names(&self) -> Vec<String> {
         let mut names: Vec<String> = self.muscles.iter().map(|m| m.name.clone()).collect();
         if self.jaw.is_some() {
@@ -412,18 +412,19 @@ impl FaceModel {
             }
     }
 
-    /// The reduced right-hand side `−K_fp u_p` of prescribed displacements `u_p` on fixed
-    /// nodes, element by element (only elements that touch a moving node).
-    fn prescribed_rhs(&self, prescribed: &[DVec3]) -> Result<Vec<f64>> {
+    /// The reduced right-hand sides `−K_fp u_p` of several prescribed displacement fields
+    /// `u_p` on fixed nodes, element by element: only elements that touch a moving node, each
+    /// element matrix computed once for all fields.
+    fn prescribed_rhs(&self, fields: &[Vec<DVec3>]) -> Result<Vec<Vec<f64>>> {
         use rayon::prelude::*;
         let touched: Vec<usize> = (0..self.volume.elements.len())
             .filter(|&e| {
                 self.volume.elements[e]
                     .iter()
-                    .any(|&n| prescribed[n as usize] != DVec3::ZERO)
+                    .any(|&n| fields.iter().any(|u| u[n as usize] != DVec3::ZERO))
             })
             .collect();
-        let loads: Vec<(usize, nalgebra::SVector<f64, 24>)> = touched
+        let loads: Vec<(usize, Vec<nalgebra::SVector<f64, 24>>)> = touched
             .par_iter()
             .map(|&e| {
                 let material = match self.volume.element_group[e] {
@@ -440,19 +441,25 @@ impl FaceModel {
                         "element {e} is invalid under the jaw"
                     )))
                 })?;
-                let u = hex8::stack(&self.volume.elements[e].map(|n| prescribed[n as usize]));
-                Ok((e, k * u))
+                let nodes = self.volume.elements[e];
+                let f = fields
+                    .iter()
+                    .map(|u| k * hex8::stack(&nodes.map(|n| u[n as usize])))
+                    .collect();
+                Ok((e, f))
             })
             .collect::<Result<_>>()?;
-        let mut full = vec![0.0; 3 * self.volume.nodes_mm.len()];
-        for (e, f) in loads {
-            for (a, &node) in self.volume.elements[e].iter().enumerate() {
-                for axis in 0..3 {
-                    full[3 * node as usize + axis] -= f[3 * a + axis];
+        let mut full = vec![vec![0.0; 3 * self.volume.nodes_mm.len()]; fields.len()];
+        for (e, per_field) in loads {
+            for (out, f) in full.iter_mut().zip(per_field) {
+                for (a, &node) in self.volume.elements[e].iter().enumerate() {
+                    for axis in 0..3 {
+                        out[3 * node as usize + axis] -= f[3 * a + axis];
+                    }
                 }
             }
         }
-        Ok(self.system.restrict(&full))
+        Ok(full.iter().map(|f| self.system.restrict(f)).collect())
     }
 
     /// The resolved muscles (empty until [`set_muscles`](Self::set_muscles)).
@@ -477,14 +484,15 @@ impl FaceModel {
             let full = flatten(&muscle.nodal_forces(self.volume.nodes_mm.len()));
             rhs[i * dim..(i + 1) * dim].copy_from_slice(&self.system.restrict(&full));
         }
-        let mut prescribed = Vec::new();
-        if let Some(jaw) = &self.jaw {
-            for k in 0..jaw::ACTUATORS.len() {
-                let u_p = jaw.prescribed(k, &self.volume, &self.fixed);
-                let i = self.muscles.len() + k;
-                rhs[i * dim..(i + 1) * dim].copy_from_slice(&self.prescribed_rhs(&u_p)?);
-                prescribed.push(u_p);
-            }
+        let prescribed: Vec<Vec<DVec3>> = match &self.jaw {
+            Some(jaw) => (0..jaw::ACTUATORS.len())
+                .map(|k| jaw.prescribed(k, &self.volume, &self.fixed))
+                .collect(),
+            None => Vec::new(),
+        };
+        for (k, r) in self.prescribed_rhs(&prescribed)?.into_iter().enumerate() {
+            let i = self.muscles.len() + k;
+            rhs[i * dim..(i + 1) * dim].copy_from_slice(&r);
         }
         if count > 0 {
             self.solver.solve_many_in_place(&mut rhs, count)?;

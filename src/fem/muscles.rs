@@ -61,7 +61,7 @@ pub struct MuscleDef {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MuscleSet {
     pub muscles: Vec<MuscleDef>,
-    /// The jaw's actuators (`jaw_open`, `jaw_left`, `jaw_right`); none if absent.
+    /// The jaw's actuators (`jaw_open`, `jaw_left`, `jaw_right`, `jaw_forward`); none if absent.
     #[serde(default)]
     pub jaw: Option<super::jaw::JawDef>,
 }

@@ -1,4 +1,4 @@
-//! Muscles panel: 18 activation sliders and the jaw's three (instant preview through the
+//! Muscles panel: 18 activation sliders and the jaw's four (instant preview through the
 //! basis), mirror left↔right, and each pair's definition (force, insertion, origin, radius),
 //! which re-solves that basis on the worker with the cached factorization.
 
@@ -51,6 +51,7 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                 ("jaw_open", 0.0..=25.0, "°"),
                 ("jaw_left", 0.0..=8.0, " mm"),
                 ("jaw_right", 0.0..=8.0, " mm"),
+                ("jaw_forward", 0.0..=8.0, " mm"),
             ] {
                 if !fem.actuators.iter().any(|a| a == name) {
                     continue;
