@@ -162,7 +162,7 @@ pub enum Command {
         #[arg(long)]
         presets: Option<PathBuf>,
     },
-    /// Learn an expression from a scan: fit the 18 muscle activations (non-negative least
+    /// Learn an expression from a scan: fit the 18 muscle and 4 jaw activations (non-negative least
     /// squares) so the FEM face of NEUTRAL_SCAN meets EXPRESSION_SCAN; writes a preset (RON).
     FitExpression {
         neutral_scan: PathBuf,

@@ -565,6 +565,18 @@ pub fn augment_scan(
     let presets = &params.presets;
     let chosen = presets.select(&params.expressions)?;
     // Checked before the FEM work, so a bad name fails at once, not after every expression.
+    if let Some(bad) = params
+        .jaw_open_deg
+        .iter()
+        .find(|d| !(d.is_finite() && **d >= 0.0))
+    {
+        return Err(Error::algorithm(
+            "augment",
+            format!(
+                "jaw opening {bad}° (must be ≥ 0: a negative angle closes the jaw into the face)"
+            ),
+        ));
+    }
     let laugh = if params.jaw_open_deg.is_empty() {
         None
     } else {
@@ -663,6 +675,9 @@ pub fn augment_scan(
     done["unfolded_vertices"] = serde_json::json!(unfolded);
     done["surface_repairs"] = serde_json::json!(surface_repairs);
     done["expressions_mm"] = serde_json::Value::Object(figures);
+    // What made the samples, so a resumed run with other presets can be told apart.
+    done["presets"] = serde_json::json!(chosen.iter().map(|e| &e.name).collect::<Vec<_>>());
+    done["jaw_open_deg"] = serde_json::json!(params.jaw_open_deg);
     done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
     io::write_text_atomic(
         &out_dir.join(DONE_MARKER),

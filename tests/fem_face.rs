@@ -192,6 +192,8 @@ fn the_jaw_drops_the_chin_opens_the_mouth_and_is_an_equilibrium() {
             .unwrap()
     };
     let (upper, lower) = (lip(true), lip(false));
+    // The slit's rim is classified by topology: the lower lip on the jaw, the upper lip not.
+    assert!(jaw.weights[lower] > 0.99 && jaw.weights[upper] < 0.01);
     let opening = (p[upper] + at(upper)).y - (p[lower] + at(lower)).y - (p[upper].y - p[lower].y);
     println!("the lips part by {opening:.1} mm");
     assert!(opening > 5.0, "{opening}");

@@ -208,8 +208,12 @@ impl Step {
     }
 }
 
-/// `x_left` ↔ `x_right`.
+/// `x_left` ↔ `x_right`; none for the jaw's actuators (`jaw_left` and `jaw_right` are
+/// opposite shifts, so mirroring one onto the other would cancel it).
 pub fn mirrored(muscle: &str) -> Option<String> {
+    if crate::fem::jaw::ACTUATORS.contains(&muscle) {
+        return None;
+    }
     if let Some(base) = muscle.strip_suffix("_left") {
         Some(format!("{base}_right"))
     } else {

@@ -37,7 +37,7 @@ pub enum Job {
         /// `pipeline::registration_points`).
         borders_detected: bool,
     },
-    /// Fit the 18 activations to an expression scan with the current FEM model.
+    /// Fit the muscle and jaw activations to an expression scan with the current FEM model.
     FitExpression {
         scan: PathBuf,
         /// The (denoised) neutral scan the model was registered to, if any.

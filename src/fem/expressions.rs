@@ -1,7 +1,7 @@
 //! Expression presets: FACS-style descriptions mapped to muscle activations
 //! (`assets/expressions.ron`, 18 presets, plus optional user files).
 //!
-//! An expression is `u = Σ a_i u_i` over the muscle basis, so applying one costs an 18-term sum.
+//! An expression is `u = Σ a_i u_i` over the muscle basis, so applying one costs an 18 + 4-term sum (muscles, jaw).
 
 use crate::{Error, FemError, Result};
 use serde::{Deserialize, Serialize};
@@ -49,17 +49,22 @@ impl Expression {
                 ))
                 .into());
             }
+            let jaw_key = crate::fem::jaw::ACTUATORS.contains(&key.as_str());
             let mut hit = false;
             for (i, name) in muscle_names.iter().enumerate() {
-                let pair_match = name
-                    .strip_prefix(key.as_str())
-                    .is_some_and(|rest| rest == "_left" || rest == "_right");
+                // `jaw_left` / `jaw_right` are opposite shifts, not a left/right pair.
+                let pair_match = !crate::fem::jaw::ACTUATORS.contains(&name.as_str())
+                    && name
+                        .strip_prefix(key.as_str())
+                        .is_some_and(|rest| rest == "_left" || rest == "_right");
                 if name == key || pair_match {
                     out[i] = a;
                     hit = true;
                 }
             }
-            if !hit {
+            // A model whose muscle set turns the jaw off (`jaw: None`) ignores the jaw keys.
+            let ignored = jaw_key && !muscle_names.iter().any(|n| n == "jaw_open");
+            if !hit && !ignored {
                 return Err(FemError::Definition(format!(
                     "expression `{}`: `{key}` names no muscle",
                     self.name
@@ -158,6 +163,39 @@ mod tests {
             let a = e.activations_for(&names).unwrap();
             assert!(a.iter().any(|&x| x > 0.0), "{}", e.name);
         }
+    }
+
+    #[test]
+    fn jaw_keys_never_pair_and_are_ignored_without_a_jaw() {
+        let surprise = ExpressionSet::builtin().get("surprise").unwrap().clone();
+        let with_jaw = MuscleSet::builtin().actuator_names();
+        let a = surprise.activations_for(&with_jaw).unwrap();
+        let open = with_jaw.iter().position(|n| n == "jaw_open").unwrap();
+        assert!(a[open] > 0.0);
+        // A muscle file written before the jaw gets the built-in one...
+        let mut old = ron::to_string(&MuscleSet::builtin()).unwrap();
+        let at = old.find(",jaw:").expect("serialised jaw field");
+        old.truncate(at);
+        old.push(')');
+        let parsed = MuscleSet::parse(&old, Path::new("old.ron")).unwrap();
+        assert_eq!(parsed.jaw, MuscleSet::builtin().jaw);
+        // ...while `jaw: None` turns it off, and the presets' jaw keys are then ignored.
+        let off = MuscleSet {
+            jaw: None,
+            ..MuscleSet::builtin()
+        };
+        let names = off.actuator_names();
+        assert_eq!(names.len(), 18);
+        let b = surprise.activations_for(&names).unwrap();
+        assert_eq!(&b[..], &a[..18]);
+        // "jaw" is not a left/right pair name: the two shifts would cancel.
+        let pair = Expression {
+            name: "t".into(),
+            description: String::new(),
+            action_units: vec![],
+            activations: [("jaw".to_string(), 1.0)].into_iter().collect(),
+        };
+        assert!(pair.activations_for(&with_jaw).is_err());
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Learning an expression from a scan (paper: "additional expressions can be learned from
 //! input faces"): given the FEM face of a person's neutral scan and a scan of the same person
 //! with an expression, align the expression scan rigidly on stable regions (upper forehead and
-//! nose), then fit the 18 muscle activations by non-negative least squares so that the
+//! nose), then fit the 18 muscle activations and the jaw by non-negative least squares so that the
 //! synthesized surface meets the scan, re-taking closest points a few times. The fit is
 //! point-to-plane (along the model's vertex normals): a surface scan shows where the skin is,
 //! not how far it slid along itself.
@@ -47,7 +47,7 @@ impl Default for FitParams {
 /// What [`fit_expression`] found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitResult {
-    /// One non-negative activation per muscle (model order).
+    /// One non-negative activation per actuator (model order: the muscles, then the jaw).
     pub activations: Vec<f64>,
     /// RMS distance of the neutral model surface to the aligned expression scan, mm.
     pub rms_before_mm: f64,

@@ -5,7 +5,7 @@
 //! over the free DOFs into a fixed sparsity pattern; [`solver::CachedCholesky`] factors it once;
 //! [`muscles`] turn 18 feature-point-relative muscle definitions into nodal forces; the muscle
 //! basis `u_i = K⁻¹ f_i` is solved once, after which any expression
-//! ([`expressions`]) is `u = Σ a_i u_i` — a slider change is an 18-term sum, not a solve.
+//! ([`expressions`]) is `u = Σ a_i u_i` — a slider change is an 18-term sum (22 with the jaw), not a solve.
 //! [`jaw`] adds four actuators after the muscles (open, left, right, forward): prescribed motions of
 //! the bone under the lower face, solved into basis vectors the same way (`K_ff u_f = −K_fp
 //! u_p`), so an expression is an 18 + 4-term sum.
@@ -285,7 +285,8 @@ impl FaceModel {
         &self.system
     }
 
-    /// Which volume nodes are held in place.
+    /// Which volume nodes are held in place (or, under the lower face, moved by the jaw's
+    /// prescribed motion: see [`jaw`]).
     pub fn fixed_nodes(&self) -> &[bool] {
         &self.fixed
     }
@@ -381,8 +382,11 @@ impl FaceModel {
     /// Resolves the muscle (and jaw) definitions against this face's feature points and drops
     /// the basis.
     pub fn set_muscles(&mut self, set: &MuscleSet) -> Result<()> {
-        self.muscles = set.resolve(self)?;
-        self.jaw = set.jaw.as_ref().map(|def| def.resolve(self)).transpose()?;
+        // Both resolve before either is stored, so a failure leaves the model as it was.
+        let muscles = set.resolve(self)?;
+        let jaw = set.jaw.as_ref().map(|def| def.resolve(self)).transpose()?;
+        self.muscles = muscles;
+        self.jaw = jaw;
         self.basis.clear();
         Ok(())
     }
@@ -520,7 +524,7 @@ impl FaceModel {
 
     /// Whether the basis matches the current muscles, jaw, materials and fixed nodes.
     pub fn has_basis(&self) -> bool {
-        self.basis.len() == self.actuator_count() && !self.muscles.is_empty()
+        self.basis.len() == self.actuator_count() && self.actuator_count() > 0
     }
 
     /// Replaces muscle `index` (e.g. a new force direction or magnitude) and re-solves only its

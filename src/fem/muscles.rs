@@ -61,8 +61,10 @@ pub struct MuscleDef {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MuscleSet {
     pub muscles: Vec<MuscleDef>,
-    /// The jaw's actuators (`jaw_open`, `jaw_left`, `jaw_right`, `jaw_forward`); none if absent.
-    #[serde(default)]
+    /// The jaw's actuators (`jaw_open`, `jaw_left`, `jaw_right`, `jaw_forward`). A file without
+    /// the field (older muscle files and autosaves) gets the built-in jaw; `jaw: None` turns it
+    /// off (then the presets' jaw keys are ignored).
+    #[serde(default = "builtin_jaw")]
     pub jaw: Option<super::jaw::JawDef>,
 }
 
@@ -143,6 +145,11 @@ impl FaceFrame {
     }
 }
 
+/// The built-in jaw (`assets/muscles.ron`), for files written before the jaw.
+fn builtin_jaw() -> Option<super::jaw::JawDef> {
+    MuscleSet::builtin().jaw
+}
+
 impl MuscleSet {
     /// The built-in 9 pairs = 18 muscles.
     pub fn builtin() -> Self {
@@ -178,6 +185,12 @@ impl MuscleSet {
         }
         if let Some(jaw) = &set.jaw {
             jaw.check().map_err(|why| Error::invalid(path, why))?;
+            if set.muscles.iter().any(|d| d.name == "jaw") {
+                return Err(Error::invalid(
+                    path,
+                    "a muscle pair named `jaw` would clash with the jaw's actuators",
+                ));
+            }
         }
         Ok(set)
     }

@@ -54,8 +54,8 @@
 //!
 //! Augmentation buys +17 … +21 points rank-1 with the automatic pose (seed 8 Euclidean: 60.2 →
 //! 80.7, the paper's +20); the goal of ≥ 90 % is not reached. Before the FEM jaw
-//! ([`crate::fem::jaw`]) the same runs gave 75.8 / 61.5 (seed 8) and 68.4 / 61.9 (seed 9, auto,
-//! cosine): the laugh rose from 42.6 / 27.9 % to 65.6 / 68.9 %, because `surprise` now drops
+//! ([`crate::fem::jaw`]) the same runs, re-measured with the binary of commit a82766d, gave
+//! 75.8 / 61.5 (seed 8) and 68.4 / 61.9 (seed 9, auto, cosine, augmented / neutral): the laugh rose from 42.6 / 27.9 % to 65.6 / 68.9 %, because `surprise` now drops
 //! the jaw 8° and the scan inside the opened lips is pushed back into a mouth cavity (the
 //! probes' open mouth is a 20–25 mm deep cavity between the lips). The smile pays for it
 //! (93.4 / 86.9 → 86.9 / 78.7 %): tried on both seeds, every extra open-jaw preset cost the smile

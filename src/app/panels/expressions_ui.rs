@@ -84,7 +84,9 @@ pub fn expressions_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     ui.horizontal(|ui| {
         if ui
             .add_enabled(!app.doc.busy(), egui::Button::new("Learn from scan…"))
-            .on_hover_text("fit the 18 activations to an expression scan of the same person")
+            .on_hover_text(
+                "fit the muscle and jaw activations to an expression scan of the same person",
+            )
             .clicked()
             && let Some(path) = rfd::FileDialog::new()
                 .add_filter("meshes", &["wrl", "vrml", "obj", "ply", "xyz", "txt"])

@@ -31,7 +31,11 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     let name = format!("{pair}_{side}");
                     let mut a = activations.get(&name).copied().unwrap_or(0.0);
                     ui.label(&name);
-                    let r = ui.add(egui::Slider::new(&mut a, 0.0..=2.0).fixed_decimals(2));
+                    let r = ui.add(
+                        egui::Slider::new(&mut a, 0.0..=2.0)
+                            .clamping(egui::SliderClamping::Never)
+                            .fixed_decimals(2),
+                    );
                     started |= super::edit_phase(&r).0;
                     if r.changed() {
                         changed = true;
@@ -48,7 +52,7 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             // and jaw_right are opposite shifts).
             let fem = app.doc.fem.as_ref().expect("checked above");
             for (name, range, unit) in [
-                ("jaw_open", 0.0..=25.0, "°"),
+                ("jaw_open", 0.0..=20.0, "°"),
                 ("jaw_left", 0.0..=8.0, " mm"),
                 ("jaw_right", 0.0..=8.0, " mm"),
                 ("jaw_forward", 0.0..=8.0, " mm"),
@@ -58,8 +62,11 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                 }
                 let mut a = activations.get(name).copied().unwrap_or(0.0);
                 ui.label(name);
+                // No clamping: a fitted or blended value beyond the range must survive showing
+                // the panel.
                 let r = ui.add(
                     egui::Slider::new(&mut a, range)
+                        .clamping(egui::SliderClamping::Never)
                         .fixed_decimals(1)
                         .suffix(unit),
                 );
