@@ -235,6 +235,18 @@ fn the_jaw_drops_the_chin_opens_the_mouth_and_is_an_equilibrium() {
         "jaw_forward moves the chin forward"
     );
     assert!(forward[upper].length() < 0.5 * forward[lower].length());
+
+    // Freeing every node under the jaw would leave it nothing to move: refused, state kept.
+    let jaw_weights = jaw.weights.clone();
+    let mut freed = fixed.to_vec();
+    for (node, f) in freed.iter_mut().enumerate() {
+        if jaw_weights[node % n] > 0.0 {
+            *f = false;
+        }
+    }
+    let mut model = model;
+    assert!(model.set_fixed_nodes(freed).is_err());
+    assert!(model.has_basis() && model.jaw().unwrap().weights == jaw_weights);
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! Legacy ASCII VTK export of the FEM model (unstructured grid of hexahedra, cell type 12):
 //! POINT_DATA vectors `displacement` (mm) and `force` (N), scalars `fixed` (0/1); CELL_DATA
 //! scalars `young_modulus_pa` and `poisson_ratio`. ParaView opens it; it is also how a solve is
-//! cross-checked against another FEM code. Written atomically.
+//! cross-checked against another FEM code: the `fixed` nodes' `displacement` is their boundary
+//! condition (zero, or the jaw's prescribed motion under the lower face) and `force` the load on
+//! the free nodes (the muscles'; the jaw adds none). Written atomically.
 
 use super::FaceModel;
 use crate::Result;
