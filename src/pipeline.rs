@@ -175,21 +175,16 @@ pub fn mouth_cavity(
     if !(depth > 0.0) {
         return Ok(());
     }
-    let surface = &model.surface;
-    let at =
-        |p: crate::FeaturePoint| surface.positions_mm[model.feature_vertices[p.index()] as usize];
-    let frame = crate::fem::muscles::FaceFrame::new(at)?;
-    let corner = model.feature_vertices[crate::FeaturePoint::MouthCornerLeft.index()];
-    let Some(rim) = crate::generic_face::boundary_loops(surface)
-        .into_iter()
-        .find(|l| l.contains(&corner))
-    else {
+    // The jaw resolved the lips' rim and the face's axes once for all expressions.
+    let Some(jaw) = model.jaw().filter(|j| !j.mouth_rim.is_empty()) else {
         return Err(Error::algorithm(
             "augment",
-            "the FEM face has no mouth opening",
+            "the FEM face has no jaw or no mouth opening",
         ));
     };
-    let plane = |p: DVec3| DVec2::new(p.dot(frame.x), p.dot(frame.y));
+    let surface = &model.surface;
+    let rim = &jaw.mouth_rim;
+    let plane = |p: DVec3| DVec2::new(p.dot(jaw.axis), p.dot(jaw.up));
     let polygon: Vec<DVec2> = rim
         .iter()
         .map(|&v| plane(surface.positions_mm[v as usize] + u_mm[v as usize]))
@@ -216,7 +211,7 @@ pub fn mouth_cavity(
             nearest = nearest.min((a + ab * t).distance(p));
         }
         if inside {
-            *q -= frame.z * depth.min(params.wall_slope * nearest);
+            *q -= jaw.forward * depth.min(params.wall_slope * nearest);
         }
     }
     scan.update_normals();
@@ -421,6 +416,42 @@ pub fn unfold_surface(surface: &Mesh) -> (Mesh, usize) {
     (mesh, moved.iter().filter(|&&m| m).count())
 }
 
+/// What [`repaired_fem_model`] changed to get valid layers under a registered face (nothing on
+/// the generic face: 0, 1, 0).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FemRepairs {
+    /// Vertices [`unfold_surface`] moved.
+    pub unfolded_vertices: usize,
+    /// Layer thickness factor [`fem_model`] used (1 = as asked).
+    pub layer_thickness_factor: f64,
+    /// Local surface repairs [`fem_model`] made.
+    pub local_surface_repairs: usize,
+}
+
+/// The FEM model of a registered face the way every command builds it: folds unfolded
+/// ([`unfold_surface`]), then [`fem_model`]'s thinner layers or local repairs. The model's
+/// `surface` is the repaired one.
+pub fn repaired_fem_model(
+    surface: &Mesh,
+    feature_vertices: [u32; crate::FeaturePoint::COUNT],
+    params: &crate::fem::FemParams,
+) -> Result<(crate::fem::FaceModel, FemRepairs)> {
+    let (mesh, unfolded_vertices) = unfold_surface(surface);
+    let face = GenericFace {
+        mesh,
+        feature_vertices,
+    };
+    let (model, layer_thickness_factor, local_surface_repairs) = fem_model(&face, params)?;
+    Ok((
+        model,
+        FemRepairs {
+            unfolded_vertices,
+            layer_thickness_factor,
+            local_surface_repairs,
+        },
+    ))
+}
+
 /// Thickness factors tried, in order, when the layers invert under a registered face (a crease
 /// or fold of the scan that even local thinning cannot follow).
 const THICKNESS_FALLBACK: [f64; 3] = [1.0, 0.6, 0.35];
@@ -583,14 +614,13 @@ pub fn augment_scan(
         Some(presets.select(&params.laugh_base)?)
     };
     let prepared = prepare_scan(scan, None, generic)?;
-    let (surface, unfolded) = unfold_surface(&prepared.registration.mesh);
-    let face = GenericFace {
-        mesh: surface,
-        feature_vertices: generic.feature_vertices,
-    };
     let in_file = |e: Error| e.in_file(scan);
-    let (mut model, thickness_factor, surface_repairs) =
-        fem_model(&face, &params.fem).map_err(in_file)?;
+    let (mut model, repairs) = repaired_fem_model(
+        &prepared.registration.mesh,
+        generic.feature_vertices,
+        &params.fem,
+    )
+    .map_err(in_file)?;
     model.factor().map_err(in_file)?;
     model
         .set_muscles(&crate::fem::muscles::MuscleSet::builtin())
@@ -671,9 +701,9 @@ pub fn augment_scan(
         millis: start.elapsed().as_secs_f64() * 1e3,
     };
     let mut done = serde_json::to_value(&result).unwrap_or_default();
-    done["layer_thickness_factor"] = serde_json::json!(thickness_factor);
-    done["unfolded_vertices"] = serde_json::json!(unfolded);
-    done["surface_repairs"] = serde_json::json!(surface_repairs);
+    done["layer_thickness_factor"] = serde_json::json!(repairs.layer_thickness_factor);
+    done["unfolded_vertices"] = serde_json::json!(repairs.unfolded_vertices);
+    done["surface_repairs"] = serde_json::json!(repairs.local_surface_repairs);
     done["expressions_mm"] = serde_json::Value::Object(figures);
     // What made the samples, so a resumed run with other presets can be told apart.
     done["presets"] = serde_json::json!(chosen.iter().map(|e| &e.name).collect::<Vec<_>>());

@@ -103,9 +103,7 @@ pub struct FemState {
     /// The skin surface at rest (generic or registered face).
     pub surface: Arc<Mesh>,
     pub muscles: Vec<Muscle>,
-    /// Actuator names in basis order: the muscles' (same order as `muscles`), then the jaw's.
-    pub actuators: Vec<String>,
-    /// Per actuator (same order): displacement of every volume node at activation 1, mm.
+    /// Per actuator ([`FemState::actuators`] order): displacement of every volume node at activation 1, mm.
     pub basis: Arc<Vec<Vec<DVec3>>>,
     pub fixed: Vec<bool>,
     pub params: FemParams,
@@ -122,10 +120,23 @@ pub struct FemState {
 }
 
 impl FemState {
+    /// Actuator names in basis order: the muscles', then the jaw's when `muscle_set` (the set
+    /// the model was built from) has one.
+    pub fn actuators(&self) -> impl Iterator<Item = &str> {
+        let jaw: &[&str] = if self.muscle_set.jaw.is_some() {
+            &crate::fem::jaw::ACTUATORS
+        } else {
+            &[]
+        };
+        self.muscles
+            .iter()
+            .map(|m| m.name.as_str())
+            .chain(jaw.iter().copied())
+    }
+
     /// The activation vector in model order for a name → activation map (missing: 0).
     pub fn activation_vector(&self, activations: &BTreeMap<String, f64>) -> Vec<f64> {
-        self.actuators
-            .iter()
+        self.actuators()
             .map(|name| activations.get(name).copied().unwrap_or(0.0))
             .collect()
     }

@@ -228,16 +228,16 @@ impl WorkerState {
             self.fem = None;
             // As in the batch: folds the registration left are smoothed away, and the layers
             // thinned as a last resort (both reported in `last_update`).
-            let (surface, unfolded) = crate::pipeline::unfold_surface(surface);
-            let face = GenericFace {
-                mesh: surface,
-                feature_vertices,
-            };
-            let (mut model, factor, repairs) =
-                crate::pipeline::fem_model(&face, &params).map_err(e)?;
-            if unfolded > 0 || factor < 1.0 || repairs > 0 {
+            let (mut model, r) =
+                crate::pipeline::repaired_fem_model(surface, feature_vertices, &params)
+                    .map_err(e)?;
+            if r.unfolded_vertices > 0
+                || r.layer_thickness_factor < 1.0
+                || r.local_surface_repairs > 0
+            {
                 note = format!(
-                    "; {unfolded} folded vertices smoothed, layers × {factor}, {repairs} local surface repairs"
+                    "; {} folded vertices smoothed, layers × {}, {} local surface repairs",
+                    r.unfolded_vertices, r.layer_thickness_factor, r.local_surface_repairs
                 );
             }
             model.factor().map_err(e)?;
@@ -261,7 +261,6 @@ impl WorkerState {
             volume: cached.volume.clone(),
             surface: cached.surface.clone(),
             muscles: model.muscles().to_vec(),
-            actuators: model.actuator_names(),
             basis: Arc::new(basis),
             fixed: model.fixed_nodes().to_vec(),
             params: model.params,

@@ -33,39 +33,18 @@ pub fn expression_set(user: Option<&Path>) -> Result<ExpressionSet> {
     Ok(set)
 }
 
-/// What [`solved_model`] changed to get valid layers under a registered face (all zero / 1 on
-/// the generic face), for the reports.
-fn repairs_json(r: &Repairs) -> serde_json::Value {
-    json!({
-        "unfolded_vertices": r.unfolded_vertices,
-        "layer_thickness_factor": r.layer_thickness_factor,
-        "local_surface_repairs": r.local_surface_repairs,
-    })
-}
-
-/// See [`repairs_json`].
-pub struct Repairs {
-    pub unfolded_vertices: usize,
-    pub layer_thickness_factor: f64,
-    pub local_surface_repairs: usize,
-}
-
 /// Builds, factors and solves the muscle basis, through the same repairs as `augment` and the
 /// editor (folded quads unfolded, then thinner layers or local smoothing where the layers
 /// would invert), so every command accepts the scans `augment` accepts.
-pub fn solved_model(face: &GenericFace, muscles: Option<&Path>) -> Result<(FaceModel, Repairs)> {
-    let (surface, unfolded_vertices) = crate::pipeline::unfold_surface(&face.mesh);
-    let face = GenericFace {
-        mesh: surface,
-        feature_vertices: face.feature_vertices,
-    };
-    let (mut model, layer_thickness_factor, local_surface_repairs) =
-        crate::pipeline::fem_model(&face, &FemParams::default())?;
-    let repairs = Repairs {
-        unfolded_vertices,
-        layer_thickness_factor,
-        local_surface_repairs,
-    };
+pub fn solved_model(
+    face: &GenericFace,
+    muscles: Option<&Path>,
+) -> Result<(FaceModel, crate::pipeline::FemRepairs)> {
+    let (mut model, repairs) = crate::pipeline::repaired_fem_model(
+        &face.mesh,
+        face.feature_vertices,
+        &FemParams::default(),
+    )?;
     model.factor()?;
     let set = match muscles {
         Some(path) => MuscleSet::load(path)?,
@@ -126,7 +105,7 @@ pub fn synthesize(
         "thinned_vertices": model.extrusion.thinned_vertices,
         "min_thickness_factor": round(model.extrusion.min_thickness_factor, 4),
         "mean_scaled_jacobian": round(model.quality.mean_scaled_jacobian, 4),
-        "repairs": repairs_json(&repairs),
+        "repairs": repairs,
         "expressions": report,
     });
     io::write_text_atomic(
@@ -377,7 +356,7 @@ pub fn fit_expression(
         "rms_before_mm": round(fit.rms_before_mm, 4),
         "rms_after_mm": round(fit.rms_after_mm, 4),
         "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
-        "repairs": repairs_json(&repairs),
+        "repairs": repairs,
         "closest_preset": closest,
         "closest_preset_rms_mm": closest_rms,
         "vertices_used": fit.vertices_used,

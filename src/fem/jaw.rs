@@ -69,6 +69,11 @@ pub struct Jaw {
     pub axis: DVec3,
     /// The face's forward axis ẑ (jaw thrust).
     pub forward: DVec3,
+    /// The face's up axis ŷ.
+    pub up: DVec3,
+    /// The mouth slit's boundary loop on the surface (empty if the face has none): the lips'
+    /// rim, which the jaw opens.
+    pub mouth_rim: Vec<u32>,
     /// Per surface vertex: the share of the mandible's motion the bone under it follows, 0–1.
     pub weights: Vec<f64>,
 }
@@ -112,10 +117,12 @@ impl JawDef {
             FeaturePoint::MouthCornerRight,
         ]
         .map(|p| model.feature_vertices[p.index()]);
-        if let Some(rim) = crate::generic_face::boundary_loops(surface)
+        let mouth_rim = crate::generic_face::boundary_loops(surface)
             .into_iter()
             .find(|l| corners.iter().all(|c| l.contains(c)))
-        {
+            .unwrap_or_default();
+        if !mouth_rim.is_empty() {
+            let rim = &mouth_rim;
             // The two arcs between the corners; the one lower on average is the lower lip.
             let start = rim.iter().position(|&v| v == corners[0]).expect("contains");
             let turned: Vec<u32> = rim[start..].iter().chain(&rim[..start]).copied().collect();
@@ -149,25 +156,32 @@ impl JawDef {
             }
             std::mem::swap(&mut weights, &mut next);
         }
-        let fixed = model.fixed_nodes();
-        let n = surface.vertex_count();
-        let moving = (0..fixed.len()).any(|node| fixed[node] && weights[node % n] > 0.0);
-        if !moving {
+        let jaw = Jaw {
+            hinge_mm,
+            axis: frame.x,
+            forward: frame.z,
+            up: frame.y,
+            mouth_rim,
+            weights,
+        };
+        if !jaw.moves_some(model.fixed_nodes()) {
             return Err(FemError::Definition(
                 "jaw: no fixed node lies under the face below the mouth".into(),
             )
             .into());
         }
-        Ok(Jaw {
-            hinge_mm,
-            axis: frame.x,
-            forward: frame.z,
-            weights,
-        })
+        Ok(jaw)
     }
 }
 
 impl Jaw {
+    /// Whether some node of `fixed` lies under the jaw (a weight above 0), i.e. the jaw has
+    /// bone to move.
+    pub fn moves_some(&self, fixed: &[bool]) -> bool {
+        let n = self.weights.len();
+        (0..fixed.len()).any(|node| fixed[node] && self.weights[node % n] > 0.0)
+    }
+
     /// Displacement (mm) of every volume node at unit activation of actuator `k` (index into
     /// [`ACTUATORS`]): the mandible's motion on the fixed nodes, zero on the free ones.
     pub fn prescribed(&self, k: usize, volume: &HexMesh, fixed: &[bool]) -> Vec<DVec3> {

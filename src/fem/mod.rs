@@ -311,14 +311,11 @@ impl FaceModel {
                 self.params.fat.poisson_ratio,
             ],
         )?;
-        if let Some(jaw) = &self.jaw {
-            let n = self.surface.vertex_count();
-            if !(0..fixed.len()).any(|node| fixed[node] && jaw.weights[node % n] > 0.0) {
-                return Err(FemError::Definition(
-                    "no fixed node would be left under the jaw to move it (turn the jaw off with `jaw: None` in the muscle set)".into(),
-                )
-                .into());
-            }
+        if self.jaw.as_ref().is_some_and(|jaw| !jaw.moves_some(&fixed)) {
+            return Err(FemError::Definition(
+                "no fixed node would be left under the jaw to move it (turn the jaw off with `jaw: None` in the muscle set)".into(),
+            )
+            .into());
         }
         self.timings.assembly_millis = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();

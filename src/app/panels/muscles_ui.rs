@@ -51,15 +51,11 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             // The jaw is bone, not a muscle: degrees and millimetres, never mirrored (jaw_left
             // and jaw_right are opposite shifts).
             let fem = app.doc.fem.as_ref().expect("checked above");
-            for (name, range, unit) in [
-                ("jaw_open", 0.0..=20.0, "°"),
-                ("jaw_left", 0.0..=8.0, " mm"),
-                ("jaw_right", 0.0..=8.0, " mm"),
-                ("jaw_forward", 0.0..=8.0, " mm"),
-            ] {
-                if !fem.actuators.iter().any(|a| a == name) {
-                    continue;
-                }
+            // In `jaw::ACTUATORS` order: open (degrees), left, right, forward (mm).
+            let ranges = [(20.0, "°"), (8.0, " mm"), (8.0, " mm"), (8.0, " mm")];
+            let jaw: Vec<&str> = fem.actuators().skip(fem.muscles.len()).collect();
+            for (name, (max, unit)) in jaw.into_iter().zip(ranges) {
+                let range = 0.0..=max;
                 let mut a = activations.get(name).copied().unwrap_or(0.0);
                 ui.label(name);
                 // No clamping: a fitted or blended value beyond the range must survive showing
