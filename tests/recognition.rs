@@ -70,7 +70,7 @@ fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
             continue;
         }
         let mut mesh = io::read_mesh(&s.path).unwrap();
-        let nose = protocol::nose_tip(&s.path, &mesh).unwrap();
+        let nose = protocol::nose_tip(&s.path).unwrap();
         for p in &mut mesh.positions_mm {
             let dy = p.y - (nose.y - 40.0);
             p.z += 3.0 * (-(dy * dy + (p.x - nose.x).powi(2)) / 400.0).exp();

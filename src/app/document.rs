@@ -103,7 +103,7 @@ pub struct FemState {
     /// The skin surface at rest (generic or registered face).
     pub surface: Arc<Mesh>,
     pub muscles: Vec<Muscle>,
-    /// Per actuator ([`FemState::actuators`] order): displacement of every volume node at activation 1, mm.
+    /// Per actuator (`muscle_set.actuator_names()` order): displacement of every volume node at activation 1, mm.
     pub basis: Arc<Vec<Vec<DVec3>>>,
     pub fixed: Vec<bool>,
     pub params: FemParams,
@@ -120,23 +120,12 @@ pub struct FemState {
 }
 
 impl FemState {
-    /// Actuator names in basis order: the muscles', then the jaw's when `muscle_set` (the set
-    /// the model was built from) has one.
-    pub fn actuators(&self) -> impl Iterator<Item = &str> {
-        let jaw: &[&str] = if self.muscle_set.jaw.is_some() {
-            &crate::fem::jaw::ACTUATORS
-        } else {
-            &[]
-        };
-        self.muscles
-            .iter()
-            .map(|m| m.name.as_str())
-            .chain(jaw.iter().copied())
-    }
-
     /// The activation vector in model order for a name → activation map (missing: 0).
+    /// `muscle_set` is the set the model was built from, so its actuator names are the basis's.
     pub fn activation_vector(&self, activations: &BTreeMap<String, f64>) -> Vec<f64> {
-        self.actuators()
+        self.muscle_set
+            .actuator_names()
+            .iter()
             .map(|name| activations.get(name).copied().unwrap_or(0.0))
             .collect()
     }

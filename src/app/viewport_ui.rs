@@ -32,6 +32,7 @@ const UNDERLAY_CELL_EDGES: f64 = 2.0;
 const UNDERLAY_HIDDEN_MM: f64 = 1.5;
 
 /// The scan drawn under the FEM face (see [`underlay_mesh`]), for the face it was cut for.
+#[derive(Clone)]
 struct Underlay {
     scan: Arc<Mesh>,
     face: Arc<Mesh>,
@@ -145,7 +146,10 @@ fn build_scene(app: &EditorApp) -> SceneCache {
     let doc = &app.doc;
     let view = &app.view;
     let mut meshes = Vec::new();
-    let mut underlay = None;
+    // The last cut is kept through scenes that do not draw the FEM face (another overlay, the
+    // face hidden), so switching back does not cut it again; it is only used if the scan and
+    // the face are still the same `Arc`s.
+    let mut underlay = previous.and_then(|p| p.underlay.clone());
     let mut legend = None;
     let pick_surface;
     let shown_scan = doc

@@ -97,7 +97,7 @@ use super::pose::{
 };
 use super::range_image::{RangeImage, RangeImageParams, range_image};
 use crate::generic_face::GenericFace;
-use crate::{Error, Mesh, Result, io};
+use crate::{Error, Result, io};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -249,11 +249,12 @@ pub fn truth_nose_tip(scan_path: &Path) -> Result<DVec3> {
 
 /// The nose tip of a scan, mm, scan frame: the ground truth beside it when there is one,
 /// else the automatic detection on the denoised mesh.
-pub fn nose_tip(scan_path: &Path, mesh: &Mesh) -> Result<DVec3> {
+pub fn nose_tip(scan_path: &Path) -> Result<DVec3> {
     if truth_json(scan_path).is_some() {
         truth_nose_tip(scan_path)
     } else {
-        Ok(detect_landmarks(mesh)?.get(crate::FeaturePoint::NoseTip))
+        // The mesh is read only when there is no ground truth to take the tip from.
+        Ok(detect_landmarks(&io::read_mesh(scan_path)?)?.get(crate::FeaturePoint::NoseTip))
     }
 }
 
@@ -308,7 +309,7 @@ pub fn scan_pose(
             face_from_scan: truth_face_from_scan(scan_path)?,
         }),
         PoseSource::Identity | PoseSource::Icp => Ok(ScanPose {
-            nose_tip_in_scan: nose_tip(scan_path, &io::read_mesh(scan_path)?)?,
+            nose_tip_in_scan: nose_tip(scan_path)?,
             face_from_scan: DMat3::IDENTITY,
         }),
     }

@@ -53,8 +53,12 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             let fem = app.doc.fem.as_ref().expect("checked above");
             // In `jaw::ACTUATORS` order: open (degrees), left, right, forward (mm).
             let ranges = [(20.0, "°"), (8.0, " mm"), (8.0, " mm"), (8.0, " mm")];
-            let jaw: Vec<&str> = fem.actuators().skip(fem.muscles.len()).collect();
-            for (name, (max, unit)) in jaw.into_iter().zip(ranges) {
+            let jaw: &[&str] = if fem.muscle_set.jaw.is_some() {
+                &crate::fem::jaw::ACTUATORS
+            } else {
+                &[]
+            };
+            for (&name, (max, unit)) in jaw.iter().zip(ranges) {
                 let range = 0.0..=max;
                 let mut a = activations.get(name).copied().unwrap_or(0.0);
                 ui.label(name);
