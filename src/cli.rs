@@ -938,6 +938,7 @@ pub fn augment(
         "scans": done.len() + failed.len(),
         "augmented": done.iter().filter(|a| !a.resumed).count(),
         "resumed": done.iter().filter(|a| a.resumed).count(),
+        "redone_with_new_settings": done.iter().filter(|a| a.redone).count(),
         "failures": failed,
         "expressions_per_scan": done.iter().map(|a| a.expressions).max().unwrap_or(0),
         "seconds": seconds,

@@ -242,8 +242,11 @@ pub struct AugmentedScan {
     /// `OUT/<stem>/`: one PLY per expression (the scan carrying it, scan frame, mm) and
     /// `face/` with the FEM face's own surfaces (`neutral.obj` + one OBJ per expression).
     pub dir: std::path::PathBuf,
-    /// Finished by an earlier run (its `done.json` was there): skipped.
+    /// Finished by an earlier run with the same settings (its `done.json` records the same
+    /// [`augment_recipe`]): skipped.
     pub resumed: bool,
+    /// Finished by an earlier run with other settings: its samples were removed and made again.
+    pub redone: bool,
     pub expressions: usize,
     pub landmark_warnings: usize,
     pub matched_fraction: f64,
@@ -553,6 +556,72 @@ pub fn smooth_patch(surface: &Mesh, seeds: &[usize], rings: usize, iterations: u
 /// redone (its files may be from a killed run).
 pub const DONE_MARKER: &str = "done.json";
 
+/// Everything that decides what a subject's samples look like: the chosen presets (names
+/// *and* activations: a `--presets` file may change a preset under the same name), their
+/// intensities, the open-mouth laughs, the cavity, the FEM and the transfer settings. It is
+/// recorded in [`DONE_MARKER`]; a resumed [`augment`] skips a subject only if its recorded
+/// recipe is this one, and otherwise redoes it (samples made with other settings would be
+/// mixed into one gallery without anyone noticing).
+pub fn augment_recipe(params: &AugmentParams) -> Result<serde_json::Value> {
+    let chosen = params.presets.select(&params.expressions)?;
+    let laugh = if params.jaw_open_deg.is_empty() {
+        serde_json::Value::Null
+    } else {
+        let base = params.presets.select(&params.laugh_base)?;
+        serde_json::json!({
+            "base": base.first().map(|e| (&e.name, &e.activations)),
+            "jaw_open_deg": params.jaw_open_deg,
+        })
+    };
+    Ok(serde_json::json!({
+        "presets": chosen.iter().map(|e| (&e.name, &e.activations)).collect::<Vec<_>>(),
+        "intensities": params.intensities,
+        "laughs": laugh,
+        "cavity": params.cavity,
+        "fem": params.fem,
+        "transfer_radius_mm": params.transfer_radius_mm,
+    }))
+}
+
+/// Whether `dir` holds a finished augmentation made with `recipe` (its [`DONE_MARKER`] records
+/// the same recipe).
+fn finished_with(dir: &Path, recipe: &serde_json::Value) -> Finished {
+    let Ok(text) = std::fs::read_to_string(dir.join(DONE_MARKER)) else {
+        return Finished::No;
+    };
+    match serde_json::from_str::<serde_json::Value>(&text) {
+        Ok(done) if done.get("recipe") == Some(recipe) => Finished::Same,
+        _ => Finished::OtherSettings,
+    }
+}
+
+enum Finished {
+    No,
+    Same,
+    /// Finished with other settings (or by a version that did not record them).
+    OtherSettings,
+}
+
+/// Empties a subject folder before it is (re)done: the marker first, so a run killed while
+/// clearing leaves an unfinished folder, then the sample meshes directly in it (the folder is
+/// `augment`'s own output; `face/` is overwritten as it is written). Without this, the samples
+/// of presets the new run does not make would stay and be read as gallery samples.
+fn clear_samples(dir: &Path) -> Result<()> {
+    let marker = dir.join(DONE_MARKER);
+    if marker.is_file() {
+        std::fs::remove_file(&marker).map_err(|e| Error::io(&marker, e))?;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    for p in entries.flatten().map(|e| e.path()) {
+        if p.is_file() && io::MeshFormat::from_path(&p).is_ok() {
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+    }
+    Ok(())
+}
+
 /// Removes the temporary files [`io::write_atomic`] leaves when a process is killed mid-write
 /// (`.<name>.tmp-<pid>`). Best effort: a file that cannot be removed is left.
 fn remove_stale_temp_files(dir: &Path) {
@@ -695,6 +764,7 @@ pub fn augment_scan(
         scan: scan.to_path_buf(),
         dir: out_dir.to_path_buf(),
         resumed: false,
+        redone: false,
         expressions: written,
         landmark_warnings: prepared.detection.as_ref().map_or(0, |d| d.warnings.len()),
         matched_fraction: prepared.registration.matched_fraction(),
@@ -705,7 +775,8 @@ pub fn augment_scan(
     done["unfolded_vertices"] = serde_json::json!(repairs.unfolded_vertices);
     done["surface_repairs"] = serde_json::json!(repairs.local_surface_repairs);
     done["expressions_mm"] = serde_json::Value::Object(figures);
-    // What made the samples, so a resumed run with other presets can be told apart.
+    // What made the samples, so a resumed run with other settings can be told apart.
+    done["recipe"] = augment_recipe(params)?;
     done["presets"] = serde_json::json!(chosen.iter().map(|e| &e.name).collect::<Vec<_>>());
     done["jaw_open_deg"] = serde_json::json!(params.jaw_open_deg);
     done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
@@ -739,6 +810,8 @@ pub fn augment(
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let generic = crate::generic_face::build();
+    // Checked once up front: a bad preset name fails the batch, not every scan.
+    let recipe = augment_recipe(params)?;
     let total = scans.len();
     progress(0, total, &format!("{total} gallery scans"));
     let counter = std::sync::atomic::AtomicUsize::new(0);
@@ -749,27 +822,36 @@ pub fn augment(
                 .file_stem()
                 .map_or_else(|| "scan".into(), |s| s.to_string_lossy().into_owned());
             let dir = out.join(&stem);
-            let marker = dir.join(DONE_MARKER);
-            let r = if marker.is_file() {
+            let finished = finished_with(&dir, &recipe);
+            let redone = matches!(finished, Finished::OtherSettings);
+            let r = if matches!(finished, Finished::Same) {
                 Ok(AugmentedScan {
                     scan: scan.clone(),
                     dir,
                     resumed: true,
+                    redone: false,
                     expressions: 0,
                     landmark_warnings: 0,
                     matched_fraction: f64::NAN,
                     millis: 0.0,
                 })
             } else {
-                augment_scan(scan, &dir, &generic, params).map_err(|e| AugmentFailure {
-                    scan: scan.clone(),
-                    stage: e.stage(),
-                    reason: e.to_string(),
-                })
+                clear_samples(&dir)
+                    .and_then(|()| augment_scan(scan, &dir, &generic, params))
+                    .map(|a| AugmentedScan { redone, ..a })
+                    .map_err(|e| AugmentFailure {
+                        scan: scan.clone(),
+                        stage: e.stage(),
+                        reason: e.to_string(),
+                    })
             };
             let k = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             let line = match &r {
                 Ok(a) if a.resumed => format!("{stem}: already done"),
+                Ok(a) if a.redone => format!(
+                    "{stem}: redone (the earlier run used other settings): {} expressions in {:.0} ms",
+                    a.expressions, a.millis
+                ),
                 Ok(a) => format!(
                     "{stem}: {} expressions in {:.0} ms",
                     a.expressions, a.millis

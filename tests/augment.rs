@@ -108,6 +108,39 @@ fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
     assert!(redone[0].scan.ends_with("subj000_frontal1.wrl"));
     let smile = facesynth::io::read_mesh(&dir.join("happiness.ply")).unwrap();
     assert_eq!(smile.vertex_count(), scan.vertex_count());
+    assert!(again.iter().all(|a| !a.redone));
+
+    // Resumed with other settings (two presets, one of them changed under its own name): every
+    // subject is redone, and the samples of the presets this run does not make are gone, so
+    // the gallery holds only what these settings make.
+    let mut other = AugmentParams {
+        expressions: "happiness,frown".into(),
+        ..AugmentParams::default()
+    };
+    let frown = other
+        .presets
+        .expressions
+        .iter_mut()
+        .find(|e| e.name == "frown")
+        .unwrap();
+    frown.activations.insert("lateral_corrugator".into(), 0.5);
+    let (third, failed) = pipeline::augment(&data, out.path(), &other, &quiet).unwrap();
+    assert!(failed.is_empty(), "{failed:?}");
+    assert_eq!(third.len(), 2);
+    assert!(third.iter().all(|a| a.redone && !a.resumed));
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".ply"))
+        .collect();
+    names.sort();
+    assert_eq!(names, ["frown.ply", "happiness.ply"]);
+    let done: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join(DONE_MARKER)).unwrap()).unwrap();
+    assert_eq!(done["recipe"], pipeline::augment_recipe(&other).unwrap());
+    // The same settings once more: nothing to do.
+    let (fourth, _) = pipeline::augment(&data, out.path(), &other, &quiet).unwrap();
+    assert!(fourth.iter().all(|a| a.resumed && !a.redone));
 }
 
 #[test]
