@@ -93,6 +93,7 @@ fn export_fem_writes_a_legacy_vtk_hex_grid() {
     for key in [
         "VECTORS displacement double",
         "VECTORS force double",
+        "VECTORS reaction double",
         "SCALARS fixed int 1",
         "SCALARS young_modulus_pa double 1",
         "SCALARS poisson_ratio double 1",
@@ -109,6 +110,21 @@ fn export_fem_writes_a_legacy_vtk_hex_grid() {
         .collect();
     assert!(types.iter().all(|t| *t == "12"));
     assert!(!text.contains("NaN") && !text.contains("inf"));
+    // The reactions balance the muscle loads.
+    let sum = |key: &str| -> Vec<f64> {
+        v[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (applied, reaction) = (sum("applied_force_sum_n"), sum("reaction_sum_n"));
+    let size = applied.iter().map(|a| a.abs()).fold(0.0, f64::max);
+    assert!(size > 0.0);
+    for (a, r) in applied.iter().zip(&reaction) {
+        assert!((a + r).abs() <= 1e-5 * size, "{applied:?} {reaction:?}");
+    }
 }
 
 #[test]

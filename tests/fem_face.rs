@@ -111,27 +111,79 @@ fn left_and_right_muscles_give_mirror_symmetric_displacements() {
     }
 }
 
-/// `K u` of a full nodal displacement field (3 per node), element by element.
-fn full_stiffness_times(model: &FaceModel, u: &[DVec3]) -> Vec<DVec3> {
-    let mut out = vec![DVec3::ZERO; u.len()];
-    for (e, element) in model.volume.elements.iter().enumerate() {
-        let material = if model.volume.element_group[e] == facesynth::fem::SKIN {
-            model.params.skin
-        } else {
-            model.params.fat
-        };
-        let k = facesynth::fem::hex8::element_stiffness(
-            &model.volume.element_nodes(e),
-            material.young_modulus_pa,
-            material.poisson_ratio,
-        )
+#[test]
+fn reactions_balance_the_loads_and_internal_forces_match_the_assembled_matrix() {
+    let model = model();
+    let names = model.actuator_names();
+    let n_nodes = model.volume.nodes_mm.len();
+
+    // Element-by-element K u equals the assembled reduced matrix on every free DOF (two
+    // independent paths: the element loop and the scatter map + CSC product).
+    let field: Vec<DVec3> = (0..n_nodes)
+        .map(|v| {
+            let t = v as f64;
+            DVec3::new((0.37 * t).sin(), (0.11 * t).cos(), (0.05 * t).sin() * 0.5)
+        })
+        .collect();
+    let mut full = flatten(&field);
+    let sys = model.system();
+    let reduced = sys.restrict(&full);
+    sys.extend(&reduced, &mut full); // fixed DOFs zeroed
+    let free_field: Vec<DVec3> = full
+        .chunks(3)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect();
+    let ku = flatten(&model.internal_forces(&free_field).unwrap());
+    let mut y = vec![0.0; reduced.len()];
+    sys.multiply(&reduced, &mut y);
+    let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = sys
+        .restrict(&ku)
+        .iter()
+        .zip(&y)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(worst <= 1e-12 * scale, "{worst} vs {scale}");
+
+    // A muscle expression: the free nodes are balanced, the reactions take the loads.
+    let happy = ExpressionSet::builtin()
+        .get("happiness")
+        .unwrap()
+        .activations_for(&names)
         .unwrap();
-        let f = k * facesynth::fem::hex8::stack(&element.map(|n| u[n as usize]));
-        for (a, &n) in element.iter().enumerate() {
-            out[n as usize] += DVec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
-        }
-    }
-    out
+    let u = model.combine_volume(&happy).unwrap();
+    let f = model.forces(&happy);
+    let eq = model.equilibrium(&u, &f).unwrap();
+    let applied = eq.applied_sum_n.length();
+    let max_f = f.iter().map(|v| v.length()).fold(0.0, f64::max);
+    println!(
+        "happiness: Σf {:?} N, Σreactions {:?} N, free residual {:.2e} N",
+        eq.applied_sum_n, eq.reaction_sum_n, eq.free_residual_n
+    );
+    assert!(applied > 0.0);
+    assert!((eq.reaction_sum_n + eq.applied_sum_n).length() <= 1e-9 * max_f * n_nodes as f64);
+    assert!(eq.free_residual_n <= 1e-9 * max_f);
+    let fixed = model.fixed_nodes();
+    assert!(
+        eq.reaction_n
+            .iter()
+            .zip(fixed)
+            .all(|(r, &fx)| fx || *r == DVec3::ZERO)
+    );
+
+    // The jaw alone: no loads, reactions that hold it open and sum to zero.
+    let mut jaw = vec![0.0; names.len()];
+    jaw[names.iter().position(|a| a == "jaw_open").unwrap()] = 10.0;
+    let u = model.combine_volume(&jaw).unwrap();
+    let f = model.forces(&jaw);
+    let eq = model.equilibrium(&u, &f).unwrap();
+    let total: f64 = eq.reaction_n.iter().map(|r| r.length()).sum();
+    assert!(eq.applied_sum_n == DVec3::ZERO && total > 0.0);
+    assert!(
+        eq.reaction_sum_n.length() <= 1e-9 * total,
+        "{:?}",
+        eq.reaction_sum_n
+    );
+    assert!(eq.free_residual_n <= 1e-9 * total);
 }
 
 #[test]
@@ -164,7 +216,7 @@ fn the_jaw_drops_the_chin_opens_the_mouth_and_is_an_equilibrium() {
 
     // Free nodes are in equilibrium: (K u) vanishes on every free DOF, while the fixed nodes
     // carry the reactions that hold the jaw open.
-    let r = full_stiffness_times(&model, &u);
+    let r = model.internal_forces(&u).unwrap();
     let reaction = (0..u.len())
         .filter(|&v| fixed[v])
         .map(|v| r[v].length())

@@ -6,6 +6,7 @@ use crate::fem::{FaceModel, FemParams, HexMesh};
 use crate::generic_face::{self, GenericFace};
 use crate::{denoise, io};
 use anyhow::{Context, Result};
+use glam::DVec3;
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
@@ -136,11 +137,17 @@ pub fn export_fem(
     let a = e.activations_for(&names)?;
     let u = model.combine_volume(&a)?;
     let f = model.forces(&a);
-    crate::fem::vtk::write(vtk, &model, &u, &f)?;
+    let eq = model.equilibrium(&u, &f)?;
+    crate::fem::vtk::write(vtk, &model, &u, &f, &eq.reaction_n)?;
+    let v = |x: DVec3| [x.x, x.y, x.z].map(|c| c as f32);
     Ok(json!({
         "vtk": vtk, "expression": expression, "points": model.volume.nodes_mm.len(),
         "cells": model.elements(), "dofs": model.dofs(),
         "max_displacement_mm": round(u.iter().map(|d| d.length()).fold(0.0, f64::max), 4),
+        // The balance a cross-check starts from: Σ reactions = −Σ loads; free nodes balanced.
+        "applied_force_sum_n": v(eq.applied_sum_n),
+        "reaction_sum_n": v(eq.reaction_sum_n),
+        "free_residual_n": eq.free_residual_n,
     }))
 }
 

@@ -132,6 +132,20 @@ impl Material {
     }
 }
 
+/// The forces of a solved field ([`FaceModel::equilibrium`]).
+#[derive(Debug, Clone)]
+pub struct Equilibrium {
+    /// Support force on each node (N): `K u − f` at the fixed nodes, zero at the free ones.
+    pub reaction_n: Vec<DVec3>,
+    /// `Σ f` over all nodes (N), loads on fixed nodes included (the supports take those).
+    pub applied_sum_n: DVec3,
+    /// `Σ reactions` (N). Rigid translations are in the stiffness's null space, so this is
+    /// `−applied_sum_n` up to round-off; a jaw motion without loads gives zero.
+    pub reaction_sum_n: DVec3,
+    /// Largest `|K u − f|` over the free nodes (N): what the solve left unbalanced.
+    pub free_residual_n: f64,
+}
+
 /// Parameters of the face model. Defaults are the paper's (section 2, after its ref. 14).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FemParams {
@@ -422,6 +436,71 @@ impl FaceModel {
             }
     }
 
+    /// The element stiffness of element `e` with its layer's material (N/mm).
+    fn element_stiffness(&self, e: usize) -> Result<hex8::ElementStiffness> {
+        let material = match self.volume.element_group[e] {
+            SKIN => self.params.skin,
+            _ => self.params.fat,
+        };
+        hex8::element_stiffness(
+            &self.volume.element_nodes(e),
+            material.young_modulus_pa,
+            material.poisson_ratio,
+        )
+        .map_err(|_| FemError::Definition(format!("element {e} is invalid")).into())
+    }
+
+    /// The internal nodal forces `K u` (N) of a displacement field over all nodes (mm),
+    /// assembled element by element from the full, unconstrained stiffness.
+    pub fn internal_forces(&self, displacement_mm: &[DVec3]) -> Result<Vec<DVec3>> {
+        use rayon::prelude::*;
+        let n = self.volume.nodes_mm.len();
+        if displacement_mm.len() != n {
+            return Err(FemError::Definition(format!(
+                "{} displacements for {n} nodes",
+                displacement_mm.len()
+            ))
+            .into());
+        }
+        let per_element: Vec<nalgebra::SVector<f64, 24>> = (0..self.volume.elements.len())
+            .into_par_iter()
+            .map(|e| {
+                let nodes = self.volume.elements[e];
+                Ok(self.element_stiffness(e)?
+                    * hex8::stack(&nodes.map(|v| displacement_mm[v as usize])))
+            })
+            .collect::<Result<_>>()?;
+        let mut out = vec![DVec3::ZERO; n];
+        for (e, f) in per_element.iter().enumerate() {
+            for (a, &node) in self.volume.elements[e].iter().enumerate() {
+                out[node as usize] += DVec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Reactions and the balance of forces for a solved field `u` under loads `f` (both one
+    /// per node). See [`Equilibrium`].
+    pub fn equilibrium(&self, displacement_mm: &[DVec3], force_n: &[DVec3]) -> Result<Equilibrium> {
+        let mut r = self.internal_forces(displacement_mm)?;
+        let mut free_residual_n = 0.0f64;
+        for ((r, &fixed), f) in r.iter_mut().zip(self.fixed_nodes()).zip(force_n) {
+            let rest = *r - *f;
+            if fixed {
+                *r = rest;
+            } else {
+                free_residual_n = free_residual_n.max(rest.length());
+                *r = DVec3::ZERO;
+            }
+        }
+        Ok(Equilibrium {
+            applied_sum_n: force_n.iter().sum(),
+            reaction_sum_n: r.iter().sum(),
+            reaction_n: r,
+            free_residual_n,
+        })
+    }
+
     /// The reduced right-hand sides `−K_fp u_p` of several prescribed displacement fields
     /// `u_p` on fixed nodes, element by element: only elements that touch a moving node, each
     /// element matrix computed once for all fields.
@@ -437,20 +516,7 @@ impl FaceModel {
         let loads: Vec<(usize, Vec<nalgebra::SVector<f64, 24>>)> = touched
             .par_iter()
             .map(|&e| {
-                let material = match self.volume.element_group[e] {
-                    SKIN => self.params.skin,
-                    _ => self.params.fat,
-                };
-                let k = hex8::element_stiffness(
-                    &self.volume.element_nodes(e),
-                    material.young_modulus_pa,
-                    material.poisson_ratio,
-                )
-                .map_err(|_| {
-                    crate::Error::from(FemError::Definition(format!(
-                        "element {e} is invalid under the jaw"
-                    )))
-                })?;
+                let k = self.element_stiffness(e)?;
                 let nodes = self.volume.elements[e];
                 let f = fields
                     .iter()

@@ -2,8 +2,10 @@
 //! POINT_DATA vectors `displacement` (mm) and `force` (N), scalars `fixed` (0/1); CELL_DATA
 //! scalars `young_modulus_pa` and `poisson_ratio`. ParaView opens it; it is also how a solve is
 //! cross-checked against another FEM code: the `fixed` nodes' `displacement` is their boundary
-//! condition (zero, or the jaw's prescribed motion under the lower face) and `force` the load on
-//! the free nodes (the muscles'; the jaw adds none). Written atomically.
+//! condition (zero, or the jaw's prescribed motion under the lower face), `force` the load on
+//! the nodes (the muscles'; the jaw adds none), and `reaction` (N) the support force at the fixed
+//! nodes (`K u − f` there, zero elsewhere; [`FaceModel::equilibrium`]): the reactions another code
+//! computes for the same boundary conditions should match them. Written atomically.
 
 use super::FaceModel;
 use crate::Result;
@@ -11,14 +13,18 @@ use glam::DVec3;
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `model` with nodal `displacement_mm` and `force_n` (one per volume node) to `path`.
+/// Writes `model` with nodal `displacement_mm`, `force_n` and `reaction_n` (one per volume
+/// node) to `path`.
 pub fn write(
     path: &Path,
     model: &FaceModel,
     displacement_mm: &[DVec3],
     force_n: &[DVec3],
+    reaction_n: &[DVec3],
 ) -> Result<()> {
-    crate::io::write_atomic(path, |w| write_to(w, model, displacement_mm, force_n))
+    crate::io::write_atomic(path, |w| {
+        write_to(w, model, displacement_mm, force_n, reaction_n)
+    })
 }
 
 /// The VTK text into any writer.
@@ -27,6 +33,7 @@ pub fn write_to(
     model: &FaceModel,
     displacement_mm: &[DVec3],
     force_n: &[DVec3],
+    reaction_n: &[DVec3],
 ) -> std::io::Result<()> {
     let mesh = &model.volume;
     let n = mesh.nodes_mm.len();
@@ -52,7 +59,11 @@ pub fn write_to(
         writeln!(w, "12")?;
     }
     writeln!(w, "POINT_DATA {n}")?;
-    for (name, field) in [("displacement", displacement_mm), ("force", force_n)] {
+    for (name, field) in [
+        ("displacement", displacement_mm),
+        ("force", force_n),
+        ("reaction", reaction_n),
+    ] {
         writeln!(w, "VECTORS {name} double")?;
         for v in field {
             writeln!(w, "{} {} {}", v.x, v.y, v.z)?;
