@@ -27,8 +27,9 @@ pub struct FitParams {
     /// With the neutral scan given, model vertices farther than this from it (where the
     /// registration did not reach the scan) are left out, mm (default 1.5).
     pub max_neutral_error_mm: f64,
-    /// Ridge weight on the activations, relative to the mean diagonal of the normal matrix
-    /// (default 1e-4); keeps muscles the data cannot see at zero.
+    /// Ridge weight on the activations, relative to each activation's own diagonal entry of
+    /// the normal matrix (default 1e-4), so it does not depend on the activations' units
+    /// (force multiples, degrees, mm).
     pub ridge: f64,
 }
 
@@ -159,19 +160,28 @@ pub fn align_scan(
     Ok(aligned)
 }
 
-/// Non-negative least squares `min ‖A a − b‖² + ridge ‖a‖², a ≥ 0` from the normal equations
-/// `G = AᵀA`, `h = Aᵀb` (projected Gauss–Seidel; converges for positive definite `G + ridge`).
-pub fn nnls(g: &[Vec<f64>], h: &[f64], ridge: f64) -> Vec<f64> {
+/// Per-activation ridge weights: `ridge` × each activation's diagonal entry of `G` (see
+/// [`FitParams::ridge`]). Rescaling an activation's unit rescales its answer and nothing else.
+/// A column the data cannot see has a zero diagonal, a zero row and `h = 0`: its activation
+/// stays 0 without any ridge.
+pub fn column_ridge(g: &[Vec<f64>], ridge: f64) -> Vec<f64> {
+    (0..g.len()).map(|i| ridge * g[i][i]).collect()
+}
+
+/// Non-negative least squares `min ‖A a − b‖² + Σ ridgeᵢ aᵢ², a ≥ 0` from the normal
+/// equations `G = AᵀA`, `h = Aᵀb` (projected Gauss–Seidel; converges for positive definite
+/// `G + diag(ridge)`).
+pub fn nnls(g: &[Vec<f64>], h: &[f64], ridge: &[f64]) -> Vec<f64> {
     let n = h.len();
     let mut a = vec![0.0; n];
     for _ in 0..5000 {
         let mut change: f64 = 0.0;
         for i in 0..n {
-            let gii = g[i][i] + ridge;
+            let gii = g[i][i] + ridge[i];
             if !(gii > 0.0) {
                 continue;
             }
-            let r: f64 = h[i] - (0..n).map(|j| g[i][j] * a[j]).sum::<f64>() - ridge * a[i];
+            let r: f64 = h[i] - (0..n).map(|j| g[i][j] * a[j]).sum::<f64>() - ridge[i] * a[i];
             let new = (a[i] + r / gii).max(0.0);
             change = change.max((new - a[i]).abs());
             a[i] = new;
@@ -296,8 +306,7 @@ pub fn fit_expression(
                 }
             }
         }
-        let mean_diag = (0..m).map(|i| g[i][i]).sum::<f64>() / m as f64;
-        activations = nnls(&g, &h, params.ridge * mean_diag);
+        activations = nnls(&g, &h, &column_ridge(&g, params.ridge));
         u = vec![DVec3::ZERO; n];
         for i in 0..m {
             for v in 0..n {
@@ -349,7 +358,7 @@ mod tests {
         let h: Vec<f64> = (0..3)
             .map(|i| (0..3).map(|j| g[i][j] * x[j]).sum())
             .collect();
-        let a = nnls(&g, &h, 0.0);
+        let a = nnls(&g, &h, &vec![0.0; h.len()]);
         assert!(a.iter().all(|&v| v >= 0.0));
         assert_eq!(a[1], 0.0);
         // KKT: gradient zero on the free set, non-negative on the clamped one.
@@ -358,5 +367,31 @@ mod tests {
             .collect();
         assert!(grad[0].abs() < 1e-9 && grad[2].abs() < 1e-9);
         assert!(grad[1] >= -1e-9);
+    }
+
+    #[test]
+    fn the_ridge_does_not_depend_on_the_activations_units() {
+        // Three columns; then the second measured in units 1000× smaller (degrees vs a force
+        // multiple, say): G' = S G S, h' = S h. The answer must be S⁻¹ a, ridge included.
+        let g = vec![
+            vec![3.0, 1.0, 0.4],
+            vec![1.0, 2.0, 0.3],
+            vec![0.4, 0.3, 1.0],
+        ];
+        let h = vec![2.0, 1.5, 0.7];
+        let scale = [1.0, 1e-3, 1.0];
+        let gs: Vec<Vec<f64>> = (0..3)
+            .map(|i| (0..3).map(|j| scale[i] * g[i][j] * scale[j]).collect())
+            .collect();
+        let hs: Vec<f64> = (0..3).map(|i| scale[i] * h[i]).collect();
+        let ridge = 0.05;
+        let a = nnls(&g, &h, &column_ridge(&g, ridge));
+        let b = nnls(&gs, &hs, &column_ridge(&gs, ridge));
+        for i in 0..3 {
+            assert!((b[i] * scale[i] - a[i]).abs() < 1e-8, "{i}: {a:?} {b:?}");
+        }
+        // The ridge acts: the answer differs from the plain least-squares one.
+        let plain = nnls(&g, &h, &[0.0; 3]);
+        assert!((0..3).any(|i| (plain[i] - a[i]).abs() > 1e-3));
     }
 }
