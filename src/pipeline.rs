@@ -874,3 +874,47 @@ pub fn augment(
     io::write_text_atomic(&out.join("failures.json"), &failures)?;
     Ok((done, failed))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A recorded recipe is read back as the same recipe, also for activations whose shortest
+    /// decimal form a best-effort float parser reads one ulp off (fitted presets have such
+    /// values; without exact parsing every resume would redo every subject).
+    #[test]
+    fn a_recorded_recipe_reads_back_as_the_same_recipe() {
+        let mut params = AugmentParams::default();
+        for (i, e) in params.presets.expressions.iter_mut().enumerate() {
+            e.activations.insert(
+                "zygomatic_major".into(),
+                2.6739865357037638 + i as f64 * 0.1,
+            );
+        }
+        let recipe = augment_recipe(&params).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let done = serde_json::json!({ "recipe": recipe });
+        std::fs::write(
+            dir.path().join(DONE_MARKER),
+            serde_json::to_string_pretty(&done).unwrap(),
+        )
+        .unwrap();
+        assert!(matches!(finished_with(dir.path(), &recipe), Finished::Same));
+        // Another activation, or no recipe at all: other settings.
+        params.presets.expressions[0]
+            .activations
+            .insert("zygomatic_major".into(), 2.673986535703764);
+        let other = augment_recipe(&params).unwrap();
+        assert!(matches!(
+            finished_with(dir.path(), &other),
+            Finished::OtherSettings
+        ));
+        std::fs::write(dir.path().join(DONE_MARKER), "{}").unwrap();
+        assert!(matches!(
+            finished_with(dir.path(), &recipe),
+            Finished::OtherSettings
+        ));
+        std::fs::remove_file(dir.path().join(DONE_MARKER)).unwrap();
+        assert!(matches!(finished_with(dir.path(), &recipe), Finished::No));
+    }
+}
