@@ -732,6 +732,16 @@ pub fn landmarks(
     Ok(value)
 }
 
+/// The smallest and the median (upper median for an even count) of repeated timings; `(NaN,
+/// NaN)` for none.
+pub(crate) fn min_median(v: &mut [f64]) -> (f64, f64) {
+    v.sort_by(f64::total_cmp);
+    match v.first() {
+        Some(&min) => (min, v[v.len() / 2]),
+        None => (f64::NAN, f64::NAN),
+    }
+}
+
 /// `facesynth bench-landmarks IN`: wall time of denoise and of detection, `repeat` times
 /// (single-threaded code; run it pinned to one core, e.g. `taskset -c 0`).
 pub fn bench_landmarks(input: &Path, repeat: usize) -> Result<serde_json::Value> {
@@ -750,8 +760,8 @@ pub fn bench_landmarks(input: &Path, repeat: usize) -> Result<serde_json::Value>
         total.push((t2 - t0).as_secs_f64() * 1e3);
     }
     let stats = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        json!({"min": v[0], "median": v[v.len() / 2]})
+        let (min, median) = min_median(v);
+        json!({"min": min, "median": median})
     };
     Ok(json!({
         "input": input, "vertices": mesh.vertex_count(), "repeat": repeat.max(1),

@@ -562,7 +562,22 @@ pub const DONE_MARKER: &str = "done.json";
 /// recorded in [`DONE_MARKER`]; a resumed [`augment`] skips a subject only if its recorded
 /// recipe is this one, and otherwise redoes it (samples made with other settings would be
 /// mixed into one gallery without anyone noticing).
+///
+/// Errors (the settings' only check, so [`augment`] refuses them before any scan): an unknown
+/// preset name, a negative or non-finite laugh angle.
 pub fn augment_recipe(params: &AugmentParams) -> Result<serde_json::Value> {
+    if let Some(bad) = params
+        .jaw_open_deg
+        .iter()
+        .find(|d| !(d.is_finite() && **d >= 0.0))
+    {
+        return Err(Error::algorithm(
+            "augment",
+            format!(
+                "jaw opening {bad}° (must be ≥ 0: a negative angle closes the jaw into the face)"
+            ),
+        ));
+    }
     let chosen = params.presets.select(&params.expressions)?;
     let laugh = if params.jaw_open_deg.is_empty() {
         serde_json::Value::Null
@@ -663,20 +678,10 @@ pub fn augment_scan(
 ) -> Result<AugmentedScan> {
     let start = std::time::Instant::now();
     let presets = &params.presets;
+    // Checked before the FEM work, so a bad name or angle fails at once, not after every
+    // expression.
+    let recipe = augment_recipe(params)?;
     let chosen = presets.select(&params.expressions)?;
-    // Checked before the FEM work, so a bad name fails at once, not after every expression.
-    if let Some(bad) = params
-        .jaw_open_deg
-        .iter()
-        .find(|d| !(d.is_finite() && **d >= 0.0))
-    {
-        return Err(Error::algorithm(
-            "augment",
-            format!(
-                "jaw opening {bad}° (must be ≥ 0: a negative angle closes the jaw into the face)"
-            ),
-        ));
-    }
     let laugh = if params.jaw_open_deg.is_empty() {
         None
     } else {
@@ -775,10 +780,9 @@ pub fn augment_scan(
     done["unfolded_vertices"] = serde_json::json!(repairs.unfolded_vertices);
     done["surface_repairs"] = serde_json::json!(repairs.local_surface_repairs);
     done["expressions_mm"] = serde_json::Value::Object(figures);
-    // What made the samples, so a resumed run with other settings can be told apart.
-    done["recipe"] = augment_recipe(params)?;
-    done["presets"] = serde_json::json!(chosen.iter().map(|e| &e.name).collect::<Vec<_>>());
-    done["jaw_open_deg"] = serde_json::json!(params.jaw_open_deg);
+    // What made the samples (presets, laughs' angles …), so a resumed run with other settings
+    // can be told apart.
+    done["recipe"] = recipe;
     done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
     io::write_text_atomic(
         &out_dir.join(DONE_MARKER),
@@ -808,10 +812,10 @@ pub fn augment(
             ),
         });
     }
+    // Checked once up front: a bad preset name or angle fails the batch, not every scan.
+    let recipe = augment_recipe(params)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let generic = crate::generic_face::build();
-    // Checked once up front: a bad preset name fails the batch, not every scan.
-    let recipe = augment_recipe(params)?;
     let total = scans.len();
     progress(0, total, &format!("{total} gallery scans"));
     let counter = std::sync::atomic::AtomicUsize::new(0);

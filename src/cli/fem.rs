@@ -172,9 +172,7 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
             model.solve(&forces).map(|_| millis(t))
         })
         .collect::<std::result::Result<_, _>>()?;
-    solves.sort_by(f64::total_cmp);
-    let solve_min_millis = solves[0];
-    let solve_millis = solves[solves.len() / 2];
+    let (solve_min_millis, solve_millis) = super::min_median(&mut solves);
     let t = Instant::now();
     model.compute_basis()?;
     let basis_millis = millis(t);

@@ -450,10 +450,35 @@ impl FaceModel {
         .map_err(|_| FemError::Definition(format!("element {e} is invalid")).into())
     }
 
+    /// `K_e u` of each field summed into nodal forces (N, one per node and field) over the
+    /// given elements; each element matrix is computed once for all fields.
+    fn element_forces(&self, elements: &[usize], fields: &[&[DVec3]]) -> Result<Vec<Vec<DVec3>>> {
+        use rayon::prelude::*;
+        let per_element: Vec<Vec<nalgebra::SVector<f64, 24>>> = elements
+            .par_iter()
+            .map(|&e| {
+                let k = self.element_stiffness(e)?;
+                let nodes = self.volume.elements[e];
+                Ok(fields
+                    .iter()
+                    .map(|u| k * hex8::stack(&nodes.map(|n| u[n as usize])))
+                    .collect())
+            })
+            .collect::<Result<_>>()?;
+        let mut out = vec![vec![DVec3::ZERO; self.volume.nodes_mm.len()]; fields.len()];
+        for (&e, per_field) in elements.iter().zip(per_element) {
+            for (out, f) in out.iter_mut().zip(per_field) {
+                for (a, &node) in self.volume.elements[e].iter().enumerate() {
+                    out[node as usize] += DVec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
+                }
+            }
+        }
+        Ok(out)
+    }
+
     /// The internal nodal forces `K u` (N) of a displacement field over all nodes (mm),
     /// assembled element by element from the full, unconstrained stiffness.
     pub fn internal_forces(&self, displacement_mm: &[DVec3]) -> Result<Vec<DVec3>> {
-        use rayon::prelude::*;
         let n = self.volume.nodes_mm.len();
         if displacement_mm.len() != n {
             return Err(FemError::Definition(format!(
@@ -462,21 +487,11 @@ impl FaceModel {
             ))
             .into());
         }
-        let per_element: Vec<nalgebra::SVector<f64, 24>> = (0..self.volume.elements.len())
-            .into_par_iter()
-            .map(|e| {
-                let nodes = self.volume.elements[e];
-                Ok(self.element_stiffness(e)?
-                    * hex8::stack(&nodes.map(|v| displacement_mm[v as usize])))
-            })
-            .collect::<Result<_>>()?;
-        let mut out = vec![DVec3::ZERO; n];
-        for (e, f) in per_element.iter().enumerate() {
-            for (a, &node) in self.volume.elements[e].iter().enumerate() {
-                out[node as usize] += DVec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
-            }
-        }
-        Ok(out)
+        let all: Vec<usize> = (0..self.volume.elements.len()).collect();
+        Ok(self
+            .element_forces(&all, &[displacement_mm])?
+            .pop()
+            .unwrap_or_default())
     }
 
     /// Reactions and the balance of forces for a solved field `u` under loads `f` (both one
@@ -505,7 +520,6 @@ impl FaceModel {
     /// `u_p` on fixed nodes, element by element: only elements that touch a moving node, each
     /// element matrix computed once for all fields.
     fn prescribed_rhs(&self, fields: &[Vec<DVec3>]) -> Result<Vec<Vec<f64>>> {
-        use rayon::prelude::*;
         let touched: Vec<usize> = (0..self.volume.elements.len())
             .filter(|&e| {
                 self.volume.elements[e]
@@ -513,29 +527,15 @@ impl FaceModel {
                     .any(|&n| fields.iter().any(|u| u[n as usize] != DVec3::ZERO))
             })
             .collect();
-        let loads: Vec<(usize, Vec<nalgebra::SVector<f64, 24>>)> = touched
-            .par_iter()
-            .map(|&e| {
-                let k = self.element_stiffness(e)?;
-                let nodes = self.volume.elements[e];
-                let f = fields
-                    .iter()
-                    .map(|u| k * hex8::stack(&nodes.map(|n| u[n as usize])))
-                    .collect();
-                Ok((e, f))
+        let fields: Vec<&[DVec3]> = fields.iter().map(Vec::as_slice).collect();
+        Ok(self
+            .element_forces(&touched, &fields)?
+            .iter()
+            .map(|ku| {
+                let minus: Vec<f64> = flatten(ku).iter().map(|x| -x).collect();
+                self.system.restrict(&minus)
             })
-            .collect::<Result<_>>()?;
-        let mut full = vec![vec![0.0; 3 * self.volume.nodes_mm.len()]; fields.len()];
-        for (e, per_field) in loads {
-            for (out, f) in full.iter_mut().zip(per_field) {
-                for (a, &node) in self.volume.elements[e].iter().enumerate() {
-                    for axis in 0..3 {
-                        out[3 * node as usize + axis] -= f[3 * a + axis];
-                    }
-                }
-            }
-        }
-        Ok(full.iter().map(|f| self.system.restrict(f)).collect())
+            .collect())
     }
 
     /// The resolved muscles (empty until [`set_muscles`](Self::set_muscles)).
