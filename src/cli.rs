@@ -219,6 +219,9 @@ pub enum Command {
         /// The preset the open-mouth laughs start from.
         #[arg(long, default_value = "broad_smile")]
         laugh_base: String,
+        /// Muscle definitions (RON, like assets/muscles.ron) instead of the built-in ones.
+        #[arg(long)]
+        muscles: Option<PathBuf>,
         /// Skip writing the FEM face's own surfaces (`face/*.obj`); recognition does not read them.
         #[arg(long)]
         no_face_meshes: bool,
@@ -282,6 +285,12 @@ pub struct EvaluateArgs {
     /// (or .obj), in the scan's frame. The report then also gives the figures without them.
     #[arg(long)]
     pub augmented: Option<PathBuf>,
+    /// A dataset of other people (same layout, no subject in common): their expression −
+    /// neutral range images join the augmented run's within-class scatter (learned
+    /// expressions, beside the synthetic ones). Needs --augmented. The report then also gives
+    /// the figures with the synthetic expressions only (`synthetic_only`).
+    #[arg(long, value_name = "DIR")]
+    pub expression_training: Option<PathBuf>,
     /// Distance between projected faces.
     #[arg(long, value_enum, default_value_t = crate::recognition::Metric::Cosine)]
     pub metric: crate::recognition::Metric,
@@ -604,6 +613,7 @@ pub fn run(cli: Cli) -> Result<()> {
             intensities,
             jaw_open_deg,
             laugh_base,
+            muscles,
             no_face_meshes,
         }) => {
             let params = crate::pipeline::AugmentParams {
@@ -613,6 +623,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 intensities,
                 jaw_open_deg,
                 laugh_base,
+                muscles: fem::muscle_set(muscles.as_deref())?,
                 write_face_meshes: !no_face_meshes,
                 ..Default::default()
             };
@@ -815,8 +826,17 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
             within_class_regularisation: args.sw_floor,
             ..Default::default()
         },
+        expression_training: args.expression_training.clone(),
         ..ProtocolParams::default()
     };
+    if let (Some(dir), None) = (&args.expression_training, &args.augmented) {
+        return Err(crate::Error::invalid(
+            dir,
+            "--expression-training needs --augmented: the learned deviations enter the \
+             within-class scatter, which a gallery of one scan per person does not have",
+        )
+        .into());
+    }
     let samples = crate::recognition::protocol::collect_samples(
         &args.dataset,
         args.augmented.as_deref(),
@@ -832,13 +852,24 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         ),
         None => None,
     };
-    if let Some(w) = &without {
-        let r = &w.report;
-        value["without_augmentation"] = json!({
+    let summary = |r: &crate::recognition::Report| {
+        json!({
             "method": r.method, "method_note": r.method_note,
             "rank1": r.rank1, "rank5": r.rank5, "cmc": r.cmc,
             "by_probe_kind": r.by_probe_kind, "gallery_samples": r.gallery_samples,
-        });
+        })
+    };
+    if let Some(w) = &without {
+        value["without_augmentation"] = summary(&w.report);
+    }
+    if !samples.deviations.is_empty() {
+        let synthetic_only = crate::recognition::protocol::Samples {
+            deviations: Vec::new(),
+            ..samples.clone()
+        };
+        let r = crate::recognition::protocol::score(&synthetic_only, true, &params)
+            .map_err(in_dataset)?;
+        value["synthetic_only"] = summary(&r.report);
     }
     if let Some(path) = &args.plot {
         let curves = cmc_curves(&eval.report, without.as_ref().map(|w| &w.report));
@@ -872,6 +903,14 @@ fn cmc_curves(
 ) -> Vec<crate::recognition::plot::Curve> {
     use crate::recognition::plot::Curve;
     let augmented = with.synthetic_gallery_samples > 0;
+    let with_tag = if with.learned_deviations > 0 {
+        format!(
+            ", with aug. + learned ({} people)",
+            with.expression_training_subjects
+        )
+    } else {
+        ", with aug.".to_string()
+    };
     let mut out = Vec::new();
     let mut add = |report: &crate::recognition::Report, tag: &str, dashed: bool| {
         out.push(Curve {
@@ -902,9 +941,9 @@ fn cmc_curves(
     match without {
         Some(w) => {
             add(w, ", without aug.", true);
-            add(with, ", with aug.", false);
+            add(with, &with_tag, false);
         }
-        None => add(with, if augmented { ", with aug." } else { "" }, false),
+        None => add(with, if augmented { &with_tag } else { "" }, false),
     }
     out
 }

@@ -117,6 +117,8 @@ pub struct AugmentParams {
     pub presets: crate::fem::expressions::ExpressionSet,
     /// Materials and layers of the FEM face (default: the paper's).
     pub fem: crate::fem::FemParams,
+    /// The muscles (default: the built-in `assets/muscles.ron`; `augment --muscles FILE`).
+    pub muscles: crate::fem::muscles::MuscleSet,
     /// Reach of the expression transfer onto the scan, mm (default 8: about three of the
     /// generic face's quads; see [`transfer_expression`]).
     pub transfer_radius_mm: f64,
@@ -225,6 +227,7 @@ impl Default for AugmentParams {
             expressions: "all".into(),
             presets: crate::fem::expressions::ExpressionSet::builtin(),
             fem: crate::fem::FemParams::default(),
+            muscles: crate::fem::muscles::MuscleSet::builtin(),
             transfer_radius_mm: 8.0,
             intensities: vec![1.0],
             jaw_open_deg: Vec::new(),
@@ -594,6 +597,7 @@ pub fn augment_recipe(params: &AugmentParams) -> Result<serde_json::Value> {
         "laughs": laugh,
         "cavity": params.cavity,
         "fem": params.fem,
+        "muscles": params.muscles,
         "transfer_radius_mm": params.transfer_radius_mm,
     }))
 }
@@ -696,9 +700,7 @@ pub fn augment_scan(
     )
     .map_err(in_file)?;
     model.factor().map_err(in_file)?;
-    model
-        .set_muscles(&crate::fem::muscles::MuscleSet::builtin())
-        .map_err(in_file)?;
+    model.set_muscles(&params.muscles).map_err(in_file)?;
     model.compute_basis().map_err(in_file)?;
     // The gallery samples (the scan with each expression) go in `out_dir`, the FEM face's own
     // surfaces in `out_dir/face/` (for looking at; recognition reads only the top folder).

@@ -317,3 +317,36 @@ fn an_open_jaw_pushes_back_only_the_scan_inside_the_opened_lips() {
     pipeline::mouth_cavity(&mut closed, &model, &u, 0.0, &params).unwrap();
     assert_eq!(closed.positions_mm, before);
 }
+
+#[test]
+fn the_recipe_records_the_muscles_and_a_bad_muscle_file_is_refused_before_any_work() {
+    // Muscles that pull harder make other samples, so a resume must redo them.
+    let base = AugmentParams::default();
+    let mut stronger = AugmentParams::default();
+    stronger.muscles.muscles[0].force_n *= 2.0;
+    let (a, b) = (
+        pipeline::augment_recipe(&base).unwrap(),
+        pipeline::augment_recipe(&stronger).unwrap(),
+    );
+    assert_ne!(a, b);
+    assert_eq!(a["muscles"]["muscles"][0]["name"], "zygomatic_major");
+
+    let tmp = tempfile::tempdir().unwrap();
+    let bad = tmp.path().join("muscles.ron");
+    std::fs::write(&bad, "(muscles: [ (name: \"x\" ").unwrap();
+    let out_dir = tmp.path().join("out");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(["augment", "--gallery"])
+        .arg(tmp.path())
+        .arg("--out")
+        .arg(&out_dir)
+        .arg("--muscles")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("muscles.ron"), "{err}");
+    assert!(!out_dir.exists(), "no output folder for refused settings");
+}

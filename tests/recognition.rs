@@ -59,13 +59,11 @@ fn neutral_gallery_recognises_neutral_probes_with_eigenfaces_and_automatic_pose(
     }
 }
 
-#[test]
-fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
-    let dir = common::synth_dataset(SUBJECTS, SEED, false);
-    // An "augmented" folder with one pseudo-expression per subject: the frontal1 scan with a
-    // smooth 3 mm bulge below the nose, written as OBJ in the scan's frame.
+/// An "augmented" folder with one pseudo-expression per subject: the frontal1 scan with a
+/// smooth 3 mm bulge below the nose, written as OBJ in the scan's frame.
+fn bulge_augmented(dir: &Path) -> tempfile::TempDir {
     let aug = tempfile::tempdir().unwrap();
-    for s in protocol::list_scans(&dir).unwrap() {
+    for s in protocol::list_scans(dir).unwrap() {
         if s.scan != "frontal1" {
             continue;
         }
@@ -81,6 +79,13 @@ fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
         // `augment` marks a finished folder; evaluate uses only marked ones.
         std::fs::write(out.join(facesynth::pipeline::DONE_MARKER), "{}\n").unwrap();
     }
+    aug
+}
+
+#[test]
+fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let aug = bulge_augmented(&dir);
     let eval = evaluate(&dir, Some(aug.path()), &ProtocolParams::default()).unwrap();
     let r = &eval.report;
     assert!(r.failures.is_empty(), "{:?}", r.failures);
@@ -168,4 +173,77 @@ fn evaluate_command_writes_the_report() {
     assert_eq!(v["cmc"].as_array().unwrap().len(), SUBJECTS);
     let stdout: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
     assert_eq!(stdout, v);
+}
+
+#[test]
+fn expressions_learned_from_other_people_join_the_within_class_scatter() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let aug = bulge_augmented(&dir);
+    // Four other people (another seed), renamed so no subject name is shared.
+    let others = common::synth_dataset(4, SEED + 1, false);
+    let training = tempfile::tempdir().unwrap();
+    for s in protocol::list_scans(&others).unwrap() {
+        let name = format!("other{}_{}.wrl", s.subject, s.scan);
+        std::fs::copy(&s.path, training.path().join(name)).unwrap();
+    }
+    let params = ProtocolParams {
+        expression_training: Some(training.path().to_path_buf()),
+        ..ProtocolParams::default()
+    };
+    let samples = protocol::collect_samples(&dir, Some(aug.path()), &params).unwrap();
+    // Each person: frontal2, sonrisa, risa and gesto minus frontal1.
+    assert_eq!(samples.deviations.len(), 4 * 4);
+    assert_eq!(samples.training_subjects.len(), 4);
+    let learned = protocol::score(&samples, true, &params).unwrap().report;
+    assert_eq!(learned.learned_deviations, 16);
+    assert_eq!(learned.expression_training_subjects, 4);
+    assert_eq!(learned.method, Method::Fisherfaces);
+    // The deviations change the LDA, not the gallery or the PCA.
+    let synthetic_only = protocol::Samples {
+        deviations: Vec::new(),
+        ..samples.clone()
+    };
+    let plain = protocol::score(&synthetic_only, true, &params)
+        .unwrap()
+        .report;
+    assert_eq!(plain.learned_deviations, 0);
+    assert_eq!(plain.gallery_samples, learned.gallery_samples);
+    assert_eq!(plain.pca_dims, learned.pca_dims);
+    assert_ne!(
+        plain.cmc, learned.cmc,
+        "the learned scatter must change the matching"
+    );
+    // Without augmentation there is no within-class scatter to add them to.
+    let neutral = protocol::score(&samples, false, &params).unwrap().report;
+    assert_eq!(neutral.method, Method::Eigenfaces);
+    assert_eq!(neutral.learned_deviations, 0);
+
+    // A training set with the dataset's own people is refused before any scan is read.
+    let leak = ProtocolParams {
+        expression_training: Some(dir.clone()),
+        ..ProtocolParams::default()
+    };
+    let err = protocol::collect_samples(&dir, Some(aug.path()), &leak)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("shares 6 subject(s)"), "{err}");
+}
+
+#[test]
+fn expression_training_without_augmentation_is_refused() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(["evaluate", "--dataset"])
+        .arg(&dir)
+        .arg("--expression-training")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--expression-training needs --augmented"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
 }

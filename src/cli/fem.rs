@@ -34,6 +34,14 @@ pub fn expression_set(user: Option<&Path>) -> Result<ExpressionSet> {
     Ok(set)
 }
 
+/// The muscles in `user` (RON), or the built-in ones.
+pub fn muscle_set(user: Option<&Path>) -> Result<MuscleSet> {
+    match user {
+        Some(path) => Ok(MuscleSet::load(path)?),
+        None => Ok(MuscleSet::builtin()),
+    }
+}
+
 /// Builds, factors and solves the muscle basis, through the same repairs as `augment` and the
 /// editor (folded quads unfolded, then thinner layers or local smoothing where the layers
 /// would invert), so every command accepts the scans `augment` accepts.
@@ -47,11 +55,7 @@ pub fn solved_model(
         &FemParams::default(),
     )?;
     model.factor()?;
-    let set = match muscles {
-        Some(path) => MuscleSet::load(path)?,
-        None => MuscleSet::builtin(),
-    };
-    model.set_muscles(&set)?;
+    model.set_muscles(&muscle_set(muscles)?)?;
     model.compute_basis()?;
     Ok((model, repairs))
 }

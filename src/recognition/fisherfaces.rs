@@ -116,6 +116,21 @@ pub struct FisherModel {
 impl FisherModel {
     /// Trains on `samples` (each of length d) with class `labels` (any ids; ≥ 2 classes).
     pub fn train(samples: &[Vec<f64>], labels: &[usize], params: &FisherParams) -> Result<Self> {
+        Self::train_with_deviations(samples, labels, &[], params)
+    }
+
+    /// As [`Self::train`], plus known within-class **deviations** (each of length d, e.g.
+    /// expression − neutral range images of people outside the gallery): each adds `c · δ δᵀ`
+    /// (projected to the PCA space) to S_w, as if every one of the c classes had been seen
+    /// with it, so the LDA learns to ignore those directions. They change neither Ψ, the PCA
+    /// basis nor S_b. Used only by Fisherfaces (with one sample per class there is no PCA
+    /// space of M − c dimensions to put them in; the model stays Eigenfaces).
+    pub fn train_with_deviations(
+        samples: &[Vec<f64>],
+        labels: &[usize],
+        deviations: &[Vec<f64>],
+        params: &FisherParams,
+    ) -> Result<Self> {
         let m = samples.len();
         if m != labels.len() {
             return Err(Error::algorithm(
@@ -142,6 +157,15 @@ impl FisherModel {
         }
         if samples.iter().flatten().any(|x| !x.is_finite()) {
             return Err(Error::algorithm("fisherfaces", "a sample is not finite"));
+        }
+        if deviations
+            .iter()
+            .any(|v| v.len() != d || v.iter().any(|x| !x.is_finite()))
+        {
+            return Err(Error::algorithm(
+                "fisherfaces",
+                "within-class deviations must be finite vectors of the samples' length",
+            ));
         }
         let class_of: Vec<usize> = labels
             .iter()
@@ -230,6 +254,13 @@ impl FisherModel {
             for i in 0..k {
                 sw[(i, i)] += floor;
             }
+        }
+        // The floor above is relative to the gallery's own scatter, so the learned deviations
+        // come after it and do not raise it.
+        if !deviations.is_empty() {
+            let dm = DMatrix::from_fn(d, deviations.len(), |i, j| deviations[j][i]);
+            let p = u_pca.tr_mul(&dm); // k × n, without copying U transposed
+            sw += (&p * p.transpose()) * c as f64;
         }
         let chol = sw.clone().cholesky().ok_or_else(|| {
             Error::algorithm(
@@ -385,6 +416,72 @@ mod tests {
         for (x, &l) in gx.iter().zip(&gl) {
             assert_eq!(nearest(&model, &gx, &gl, x, Metric::Euclidean), l);
         }
+    }
+
+    #[test]
+    fn learned_deviations_teach_the_lda_a_direction_the_gallery_barely_shows() {
+        // 10 classes, 4 samples each, that vary very little along a direction `e` (in the
+        // gallery: an expression the synthesis makes too weakly); the within-class floor then
+        // leaves `e` about as trusted as identity. Probes show `e` 40× stronger. Deviations
+        // along `e` from other "people" make the LDA discount it.
+        let d = 120;
+        let mut st = 5u64;
+        let centres: Vec<Vec<f64>> = (0..10)
+            .map(|_| (0..d).map(|_| noise(&mut st)).collect())
+            .collect();
+        let e: Vec<f64> = (0..d).map(|_| noise(&mut st)).collect();
+        let sample = |c: &[f64], t: f64, st: &mut u64| -> Vec<f64> {
+            (0..d)
+                .map(|i| c[i] + t * e[i] + 0.3 * noise(st))
+                .collect::<Vec<f64>>()
+        };
+        let (mut gx, mut gl) = (Vec::new(), Vec::new());
+        for (cl, c) in centres.iter().enumerate() {
+            for t in [0.0, 0.1, 0.2, 0.3] {
+                gx.push(sample(c, t, &mut st));
+                gl.push(cl);
+            }
+        }
+        let probes: Vec<(Vec<f64>, usize)> = centres
+            .iter()
+            .enumerate()
+            .flat_map(|(cl, c)| {
+                [
+                    (sample(c, 12.0, &mut st), cl),
+                    (sample(c, 15.0, &mut st), cl),
+                ]
+            })
+            .collect();
+        let deviations: Vec<Vec<f64>> = [10.0, 14.0, 18.0]
+            .iter()
+            .map(|t| (0..d).map(|i| t * e[i] + 0.3 * noise(&mut st)).collect())
+            .collect();
+        let params = FisherParams {
+            within_class_regularisation: 3.0,
+            ..FisherParams::default()
+        };
+        let correct = |model: &FisherModel| {
+            probes
+                .iter()
+                .filter(|(x, l)| nearest(model, &gx, &gl, x, Metric::Cosine) == *l)
+                .count()
+        };
+        let plain = FisherModel::train(&gx, &gl, &params).unwrap();
+        let taught = FisherModel::train_with_deviations(&gx, &gl, &deviations, &params).unwrap();
+        assert_eq!(taught.method, Method::Fisherfaces);
+        assert_eq!(taught.pca_dims, plain.pca_dims);
+        let (p, t) = (correct(&plain), correct(&taught));
+        assert_eq!(
+            t,
+            probes.len(),
+            "with the deviations every probe is found ({p} without)"
+        );
+        assert!(
+            p < probes.len(),
+            "the test needs probes the plain LDA misses"
+        );
+        let bad = vec![vec![f64::NAN; d]];
+        assert!(FisherModel::train_with_deviations(&gx, &gl, &bad, &params).is_err());
     }
 
     #[test]
