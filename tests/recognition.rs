@@ -186,6 +186,12 @@ fn expressions_learned_from_other_people_join_the_within_class_scatter() {
         let name = format!("other{}_{}.wrl", s.subject, s.scan);
         std::fs::copy(&s.path, training.path().join(name)).unwrap();
     }
+    // A broken training scan is listed, not fatal.
+    std::fs::write(
+        training.path().join("broken_risa.wrl"),
+        "#VRML V2.0 utf8\nShape {",
+    )
+    .unwrap();
     let params = ProtocolParams {
         expression_training: Some(training.path().to_path_buf()),
         ..ProtocolParams::default()
@@ -194,6 +200,13 @@ fn expressions_learned_from_other_people_join_the_within_class_scatter() {
     // Each person: frontal2, sonrisa, risa and gesto minus frontal1.
     assert_eq!(samples.deviations.len(), 4 * 4);
     assert_eq!(samples.training_subjects.len(), 4);
+    assert_eq!(samples.failures.len(), 1, "{:?}", samples.failures);
+    assert!(samples.failures[0].file.ends_with("broken_risa.wrl"));
+    assert!(
+        samples.failures[0]
+            .reason
+            .starts_with("expression training: ")
+    );
     let learned = protocol::score(&samples, true, &params).unwrap().report;
     assert_eq!(learned.learned_deviations, 16);
     assert_eq!(learned.expression_training_subjects, 4);
