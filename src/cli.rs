@@ -863,11 +863,7 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         value["without_augmentation"] = summary(&w.report);
     }
     if !samples.deviations.is_empty() {
-        let synthetic_only = crate::recognition::protocol::Samples {
-            deviations: Vec::new(),
-            ..samples.clone()
-        };
-        let r = crate::recognition::protocol::score(&synthetic_only, true, &params)
+        let r = crate::recognition::protocol::score_with(&samples, true, false, &params)
             .map_err(in_dataset)?;
         value["synthetic_only"] = summary(&r.report);
     }

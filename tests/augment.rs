@@ -335,18 +335,15 @@ fn the_recipe_records_the_muscles_and_a_bad_muscle_file_is_refused_before_any_wo
     let bad = tmp.path().join("muscles.ron");
     std::fs::write(&bad, "(muscles: [ (name: \"x\" ").unwrap();
     let out_dir = tmp.path().join("out");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
-        .args(["augment", "--gallery"])
-        .arg(tmp.path())
-        .arg("--out")
-        .arg(&out_dir)
-        .arg("--muscles")
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    let err = common::cli_error(&[
+        "augment".as_ref(),
+        "--gallery".as_ref(),
+        tmp.path().as_os_str(),
+        "--out".as_ref(),
+        out_dir.as_os_str(),
+        "--muscles".as_ref(),
+        bad.as_os_str(),
+    ]);
     assert!(err.contains("muscles.ron"), "{err}");
     assert!(!out_dir.exists(), "no output folder for refused settings");
 }

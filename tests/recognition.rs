@@ -245,18 +245,15 @@ fn expressions_learned_from_other_people_join_the_within_class_scatter() {
 #[test]
 fn expression_training_without_augmentation_is_refused() {
     let dir = common::synth_dataset(SUBJECTS, SEED, false);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_facesynth"))
-        .args(["evaluate", "--dataset"])
-        .arg(&dir)
-        .arg("--expression-training")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = common::cli_error(&[
+        "evaluate".as_ref(),
+        "--dataset".as_ref(),
+        dir.as_os_str(),
+        "--expression-training".as_ref(),
+        dir.as_os_str(),
+    ]);
     assert!(
         err.contains("--expression-training needs --augmented"),
         "{err}"
     );
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
 }

@@ -222,6 +222,14 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
+/// The scans of `dir` the protocol uses: those of a gallery or a probe kind.
+fn protocol_scans(dir: &Path, params: &ProtocolParams) -> Result<Vec<ScanFile>> {
+    Ok(list_scans(dir)?
+        .into_iter()
+        .filter(|s| params.gallery_scans.contains(&s.scan) || params.probe_scans.contains(&s.scan))
+        .collect())
+}
+
 /// The scans of a dataset folder, sorted by subject then scan.
 pub fn list_scans(dir: &Path) -> Result<Vec<ScanFile>> {
     let mut out = Vec::new();
@@ -559,10 +567,7 @@ pub fn collect_samples(
     params: &ProtocolParams,
 ) -> Result<Samples> {
     let t0 = Instant::now();
-    let scans: Vec<ScanFile> = list_scans(dataset)?
-        .into_iter()
-        .filter(|s| params.gallery_scans.contains(&s.scan) || params.probe_scans.contains(&s.scan))
-        .collect();
+    let scans = protocol_scans(dataset, params)?;
     if !scans.iter().any(|s| params.gallery_scans.contains(&s.scan)) {
         return Err(Error::invalid(
             dataset,
@@ -711,10 +716,7 @@ fn training_scans(
     dataset_scans: &[ScanFile],
     params: &ProtocolParams,
 ) -> Result<Vec<ScanFile>> {
-    let scans: Vec<ScanFile> = list_scans(dir)?
-        .into_iter()
-        .filter(|s| params.gallery_scans.contains(&s.scan) || params.probe_scans.contains(&s.scan))
-        .collect();
+    let scans = protocol_scans(dir, params)?;
     let mut shared: Vec<&str> = scans
         .iter()
         .filter(|t| dataset_scans.iter().any(|s| s.subject == t.subject))
@@ -766,32 +768,36 @@ fn learned_deviations(
         .into_iter()
         .map(|r| r.map_err(|f| failures.push(f)).ok())
         .collect();
+    // Each person's first gallery-kind scan that gave an image.
+    let mut neutral: BTreeMap<&str, &Sample> = BTreeMap::new();
+    for (s, img) in scans.iter().zip(&images) {
+        if let Some(img) = img
+            .as_ref()
+            .filter(|_| params.gallery_scans.contains(&s.scan))
+        {
+            neutral.entry(s.subject.as_str()).or_insert(img);
+        }
+    }
     let mut deviations = Vec::new();
     let mut subjects: Vec<String> = Vec::new();
     for (s, img) in scans.iter().zip(&images) {
-        let Some(expression) = img
-            .as_ref()
-            .filter(|_| params.probe_scans.contains(&s.scan))
-        else {
+        let (Some(expression), Some(neutral)) = (
+            img.as_ref()
+                .filter(|_| params.probe_scans.contains(&s.scan)),
+            neutral.get(s.subject.as_str()),
+        ) else {
             continue;
         };
-        // The person's first gallery-kind scan that gave an image.
-        let neutral = scans.iter().zip(&images).find_map(|(n, i)| {
-            i.as_ref()
-                .filter(|_| n.subject == s.subject && params.gallery_scans.contains(&n.scan))
-        });
-        if let Some(neutral) = neutral {
-            deviations.push(
-                expression
-                    .features
-                    .iter()
-                    .zip(&neutral.features)
-                    .map(|(e, n)| e - n)
-                    .collect(),
-            );
-            if subjects.last() != Some(&s.subject) {
-                subjects.push(s.subject.clone());
-            }
+        deviations.push(
+            expression
+                .features
+                .iter()
+                .zip(&neutral.features)
+                .map(|(e, n)| e - n)
+                .collect(),
+        );
+        if subjects.last() != Some(&s.subject) {
+            subjects.push(s.subject.clone());
         }
     }
     if deviations.is_empty() {
@@ -825,6 +831,17 @@ pub fn score(
     with_synthetic: bool,
     params: &ProtocolParams,
 ) -> Result<Evaluation> {
+    score_with(samples, with_synthetic, with_synthetic, params)
+}
+
+/// As [`score`], with the learned deviations only when `with_learned` too (`evaluate`'s
+/// `synthetic_only` figure: the synthetic expressions alone).
+pub fn score_with(
+    samples: &Samples,
+    with_synthetic: bool,
+    with_learned: bool,
+    params: &ProtocolParams,
+) -> Result<Evaluation> {
     let t0 = Instant::now();
     let mut failures = samples.failures.clone();
     let mut gallery = samples.gallery.clone();
@@ -854,7 +871,7 @@ pub fn score(
     let labels: Vec<usize> = gallery.iter().map(|s| id_of(&s.subject).unwrap()).collect();
     let xs: Vec<Vec<f64>> = gallery.iter().map(|s| s.features.clone()).collect();
     let t1 = Instant::now();
-    let deviations: &[Vec<f64>] = if with_synthetic {
+    let deviations: &[Vec<f64>] = if with_synthetic && with_learned {
         &samples.deviations
     } else {
         &[]

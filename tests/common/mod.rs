@@ -60,3 +60,16 @@ pub fn synth_dataset(subjects: usize, seed: u64, clean: bool) -> PathBuf {
     std::fs::rename(&tmp, &dir).expect("move generated dataset into place");
     dir
 }
+
+/// Runs the `facesynth` binary with `args`, which must fail with one line on stderr; returns
+/// that line.
+pub fn cli_error(args: &[&std::ffi::OsStr]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "accepted: {args:?}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    err
+}
