@@ -843,7 +843,18 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
         &params,
     )?;
     let in_dataset = |e: crate::Error| e.in_file(&args.dataset);
-    let eval = crate::recognition::protocol::score(&samples, true, &params).map_err(in_dataset)?;
+    // With learned deviations, the FEM expressions alone too (`synthetic_only`), from the
+    // same PCA.
+    let learned_too: &[bool] = if samples.deviations.is_empty() {
+        &[true]
+    } else {
+        &[true, false]
+    };
+    let mut evals =
+        crate::recognition::protocol::score_variants(&samples, true, learned_too, &params)
+            .map_err(in_dataset)?;
+    let synthetic_only = (evals.len() > 1).then(|| evals.remove(1));
+    let eval = evals.remove(0);
     let mut value = serde_json::to_value(&eval.report)?;
     // With synthetic expressions, also the same probes against the plain neutral gallery.
     let without = match args.augmented {
@@ -862,9 +873,7 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
     if let Some(w) = &without {
         value["without_augmentation"] = summary(&w.report);
     }
-    if !samples.deviations.is_empty() {
-        let r = crate::recognition::protocol::score_with(&samples, true, false, &params)
-            .map_err(in_dataset)?;
+    if let Some(r) = &synthetic_only {
         value["synthetic_only"] = summary(&r.report);
     }
     if let Some(path) = &args.plot {

@@ -206,6 +206,11 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "dofs": model.dofs(),
         "elements": model.elements(),
         "nonzeros_upper": model.system().nonzeros(),
+        // One solve streams the factor twice; the split says how much of it two threads share.
+        "factor_entries": model.solver().factor_entries(),
+        "one_solve_split_entries": model.solver().split_entries().map(|(serial, halves)| {
+            json!({"serial": serial, "halves": halves})
+        }),
         "extrusion_millis": round(model.timings.extrusion_millis, 3),
         "assembly_millis": round(model.timings.assembly_millis, 3),
         "build_millis": build_millis,

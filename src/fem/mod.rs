@@ -299,6 +299,11 @@ impl FaceModel {
         &self.system
     }
 
+    /// The cached factorization (its size and how its single solve is split).
+    pub fn solver(&self) -> &CachedCholesky {
+        &self.solver
+    }
+
     /// Which volume nodes are held in place (or, under the lower face, moved by the jaw's
     /// prescribed motion: see [`jaw`]).
     pub fn fixed_nodes(&self) -> &[bool] {

@@ -842,14 +842,24 @@ pub fn score_with(
     with_learned: bool,
     params: &ProtocolParams,
 ) -> Result<Evaluation> {
+    let mut evals = score_variants(samples, with_synthetic, &[with_learned], params)?;
+    Ok(evals.remove(0))
+}
+
+/// One [`score_with`] per entry of `with_learned`, on the same gallery: the models share
+/// their PCA ([`FisherModel::train_variants`]), which is most of the training time.
+pub fn score_variants(
+    samples: &Samples,
+    with_synthetic: bool,
+    with_learned: &[bool],
+    params: &ProtocolParams,
+) -> Result<Vec<Evaluation>> {
     let t0 = Instant::now();
-    let mut failures = samples.failures.clone();
+    let failures = &samples.failures;
     let mut gallery = samples.gallery.clone();
     if with_synthetic {
         gallery.extend(samples.synthetic.iter().cloned());
     }
-    let probes = samples.probes.clone();
-    let t_images = samples.seconds;
     let mut identities: Vec<String> = gallery.iter().map(|s| s.subject.clone()).collect();
     identities.sort();
     identities.dedup();
@@ -871,19 +881,54 @@ pub fn score_with(
     let labels: Vec<usize> = gallery.iter().map(|s| id_of(&s.subject).unwrap()).collect();
     let xs: Vec<Vec<f64>> = gallery.iter().map(|s| s.features.clone()).collect();
     let t1 = Instant::now();
-    let deviations: &[Vec<f64>] = if with_synthetic && with_learned {
-        &samples.deviations
-    } else {
-        &[]
-    };
-    let model = FisherModel::train_with_deviations(&xs, &labels, deviations, &params.fisher)?;
-    let learned = if model.method == Method::Fisherfaces {
-        deviations.len()
-    } else {
-        0
-    };
+    let sets: Vec<&[Vec<f64>]> = with_learned
+        .iter()
+        .map(|&learned| -> &[Vec<f64>] {
+            if with_synthetic && learned {
+                &samples.deviations
+            } else {
+                &[]
+            }
+        })
+        .collect();
+    let models = FisherModel::train_variants(&xs, &labels, &sets, &params.fisher)?;
     drop(xs);
     let t_train = t1.elapsed().as_secs_f64();
+    models
+        .into_iter()
+        .zip(sets)
+        .map(|(model, deviations)| {
+            let learned = if model.method == Method::Fisherfaces {
+                deviations.len()
+            } else {
+                0
+            };
+            rank_probes(
+                samples,
+                &model,
+                learned,
+                (&gallery, &labels, &identities),
+                failures.clone(),
+                (t0, t_train),
+                params,
+            )
+        })
+        .collect()
+}
+
+/// Projects the gallery and the probes with `model` and ranks every probe (one variant of
+/// [`score_variants`]).
+fn rank_probes(
+    samples: &Samples,
+    model: &FisherModel,
+    learned: usize,
+    (gallery, labels, identities): (&[Sample], &[usize], &[String]),
+    mut failures: Vec<Failure>,
+    (t0, t_train): (Instant, f64),
+    params: &ProtocolParams,
+) -> Result<Evaluation> {
+    let t_images = samples.seconds;
+    let id_of = |s: &str| identities.binary_search_by(|x| x.as_str().cmp(s)).ok();
     let t2 = Instant::now();
     let gproj: Vec<Vec<f64>> = gallery
         .par_iter()
@@ -894,7 +939,7 @@ pub fn score_with(
     let mut best = Vec::new();
     let mut kinds = Vec::new();
     let mut matched = Vec::new();
-    for p in probes {
+    for p in samples.probes.iter().cloned() {
         let Some(truth) = id_of(&p.subject) else {
             failures.push(Failure {
                 file: p.path.clone(),
@@ -904,7 +949,7 @@ pub fn score_with(
         };
         let proj = model.project(&p.features);
         let mut dist = vec![f64::INFINITY; n];
-        for (g, &l) in gproj.iter().zip(&labels) {
+        for (g, &l) in gproj.iter().zip(labels) {
             dist[l] = dist[l].min(params.metric.distance(g, &proj));
         }
         ranks.push(rank_of(&dist, truth));
@@ -966,9 +1011,9 @@ pub fn score_with(
     };
     Ok(Evaluation {
         report,
-        gallery,
+        gallery: gallery.to_vec(),
         probes: matched,
-        identities,
+        identities: identities.to_vec(),
         ranks,
         best,
     })
