@@ -208,6 +208,8 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "nonzeros_upper": model.system().nonzeros(),
         // One solve streams the factor twice; the split says how much of it two threads share.
         "factor_entries": model.solver().factor_entries(),
+        // The factorization's probe solve (above 1e-12 single solves get refined).
+        "probe_relative_residual": model.solver().probe_residual(),
         "one_solve_split_entries": model.solver().split_entries().map(|(serial, halves)| {
             json!({"serial": serial, "halves": halves})
         }),
