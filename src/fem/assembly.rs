@@ -198,17 +198,7 @@ impl ReducedSystem {
 
     /// `y = K x` with the symmetric matrix stored as its upper triangle.
     pub fn multiply(&self, x: &[f64], y: &mut [f64]) {
-        y.iter_mut().for_each(|v| *v = 0.0);
-        for j in 0..self.dofs() {
-            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
-                let i = self.row_idx[k];
-                let v = self.values[k];
-                y[i] += v * x[j];
-                if i != j {
-                    y[j] += v * x[i];
-                }
-            }
-        }
+        symmetric_upper_multiply(&self.col_ptr, &self.row_idx, &self.values, x, y);
     }
 
     /// Gathers the free entries of a full (3 per node) vector.
@@ -294,4 +284,25 @@ fn check_constraints(mesh: &HexMesh, fixed: &[bool]) -> Result<()> {
         .into());
     }
     Ok(())
+}
+
+/// `y = A x` for a symmetric matrix given by its upper triangle in CSC form.
+pub fn symmetric_upper_multiply(
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    values: &[f64],
+    x: &[f64],
+    y: &mut [f64],
+) {
+    y.iter_mut().for_each(|v| *v = 0.0);
+    for j in 0..col_ptr.len() - 1 {
+        for k in col_ptr[j]..col_ptr[j + 1] {
+            let i = row_idx[k];
+            let v = values[k];
+            y[i] += v * x[j];
+            if i != j {
+                y[j] += v * x[i];
+            }
+        }
+    }
 }

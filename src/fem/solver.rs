@@ -19,6 +19,7 @@
 //!   on a quiet machine, where faer's own sequential solve took ~5 ms).
 //! - Each factorization is checked by one probe solve; see [`REFINE_ABOVE_RELATIVE_RESIDUAL`].
 
+use crate::fem::assembly::symmetric_upper_multiply;
 use crate::{FemError, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
@@ -53,25 +54,23 @@ struct UpperCsc {
     values: Vec<f64>,
 }
 
+/// `b − A x` for the upper-triangle CSC matrix `(col_ptr, row_idx, values)`.
+fn residual(
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    values: &[f64],
+    x: &[f64],
+    b: &[f64],
+) -> Vec<f64> {
+    let mut r = vec![0.0; b.len()];
+    symmetric_upper_multiply(col_ptr, row_idx, values, x, &mut r);
+    r.iter_mut().zip(b).for_each(|(r, b)| *r = b - *r);
+    r
+}
+
 impl UpperCsc {
-    /// `b − A x`.
     fn residual(&self, x: &[f64], b: &[f64]) -> Vec<f64> {
-        let mut r = b.to_vec();
-        for (j, &xj) in x.iter().enumerate() {
-            let (rows, vals) = (
-                &self.row_idx[self.col_ptr[j]..self.col_ptr[j + 1]],
-                &self.values[self.col_ptr[j]..self.col_ptr[j + 1]],
-            );
-            let mut acc = 0.0;
-            for (&i, &v) in rows.iter().zip(vals) {
-                if i != j {
-                    r[i] -= v * xj;
-                }
-                acc += v * x[i];
-            }
-            r[j] -= acc;
-        }
-        r
+        residual(&self.col_ptr, &self.row_idx, &self.values, x, b)
     }
 }
 
@@ -131,11 +130,6 @@ impl CachedCholesky {
                 Default::default(),
             )
             .map_err(|e| FemError::NotPositiveDefinite(format!("{e:?}")))?;
-        let matrix = UpperCsc {
-            col_ptr: col_ptr.to_vec(),
-            row_idx: row_idx.to_vec(),
-            values: values.to_vec(),
-        };
         // A pseudo-random right-hand side excites every mode (a smooth one, e.g. K·1, can
         // probe far below what a point load then gets).
         let mut state = 0x9e37_79b9_7f4a_7c15_u64;
@@ -149,13 +143,20 @@ impl CachedCholesky {
             .collect();
         let mut x = b.clone();
         self.solve_once(&l_values, &mut x);
-        let probe = relative_residual(&matrix, &x, &b);
+        let probe = norm(&residual(col_ptr, row_idx, values, &x, &b)) / norm(&b);
         if !probe.is_finite() {
             return Err(FemError::NonFinite("displacement").into());
         }
         self.values = Some(l_values);
         self.probe_residual = Some(probe);
-        self.matrix = (probe > REFINE_ABOVE_RELATIVE_RESIDUAL).then(|| Arc::new(matrix));
+        // Only a factor that needs the check keeps a copy of the matrix.
+        self.matrix = (probe > REFINE_ABOVE_RELATIVE_RESIDUAL).then(|| {
+            Arc::new(UpperCsc {
+                col_ptr: col_ptr.to_vec(),
+                row_idx: row_idx.to_vec(),
+                values: values.to_vec(),
+            })
+        });
         Ok(())
     }
 
@@ -220,15 +221,24 @@ impl CachedCholesky {
         let b = self.matrix.as_ref().map(|_| rhs.to_vec());
         self.solve_once(l, rhs);
         finite(rhs)?;
-        if let (Some(matrix), Some(b)) = (&self.matrix, b) {
-            let mut r = matrix.residual(rhs, &b);
-            if norm(&r) > REFINE_ABOVE_RELATIVE_RESIDUAL * norm(&b) {
-                self.solve_once(l, &mut r);
-                rhs.iter_mut().zip(&r).for_each(|(x, d)| *x += d);
-                finite(rhs)?;
-            }
+        if let Some(b) = b {
+            self.refine(l, rhs, &b);
+            finite(rhs)?;
         }
         Ok(())
+    }
+
+    /// One step of iterative refinement of `x` for `K x = b` if its residual is above
+    /// [`REFINE_ABOVE_RELATIVE_RESIDUAL`] (only for factors whose probe kept the matrix).
+    fn refine(&self, l: &[f64], x: &mut [f64], b: &[f64]) {
+        let Some(matrix) = &self.matrix else {
+            return;
+        };
+        let mut r = matrix.residual(x, b);
+        if norm(&r) > REFINE_ABOVE_RELATIVE_RESIDUAL * norm(b) {
+            self.solve_once(l, &mut r);
+            x.iter_mut().zip(&r).for_each(|(x, d)| *x += d);
+        }
     }
 
     fn solve_once(&self, l: &[f64], rhs: &mut [f64]) {
@@ -254,14 +264,10 @@ impl CachedCholesky {
             self.faer_solve(l, rhs, count);
         }
         finite(rhs)?;
-        if let (Some(matrix), Some(b)) = (&self.matrix, b) {
+        if let Some(b) = b {
             let n = self.dim;
             for (x, b) in rhs.chunks_exact_mut(n).zip(b.chunks_exact(n)) {
-                let mut r = matrix.residual(x, b);
-                if norm(&r) > REFINE_ABOVE_RELATIVE_RESIDUAL * norm(b) {
-                    self.solve_once(l, &mut r);
-                    x.iter_mut().zip(&r).for_each(|(x, d)| *x += d);
-                }
+                self.refine(l, x, b);
             }
             finite(rhs)?;
         }
@@ -283,15 +289,6 @@ impl CachedCholesky {
 
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
-}
-
-/// ‖b − A x‖ / ‖b‖ (0 for b = 0).
-fn relative_residual(a: &UpperCsc, x: &[f64], b: &[f64]) -> f64 {
-    let b_norm = norm(b);
-    if b_norm == 0.0 {
-        return 0.0;
-    }
-    norm(&a.residual(x, b)) / b_norm
 }
 
 fn finite(x: &[f64]) -> Result<()> {
@@ -655,21 +652,6 @@ mod tests {
         (n, col_ptr, row_idx, values)
     }
 
-    fn residual(n: usize, cp: &[usize], ri: &[usize], v: &[f64], x: &[f64], b: &[f64]) -> f64 {
-        let mut y = vec![0.0; n];
-        for j in 0..n {
-            for k in cp[j]..cp[j + 1] {
-                let i = ri[k];
-                y[i] += v[k] * x[j];
-                if i != j {
-                    y[j] += v[k] * x[i];
-                }
-            }
-        }
-        let r: f64 = y.iter().zip(b).map(|(a, b)| (a - b).powi(2)).sum();
-        (r / b.iter().map(|b| b * b).sum::<f64>()).sqrt()
-    }
-
     #[test]
     fn the_split_single_solve_matches_faer_and_solves_the_system() {
         let (n, cp, ri, v) = grid(60);
@@ -684,7 +666,7 @@ mod tests {
         chol.solve_in_place(&mut ours).unwrap();
         let mut theirs = b.clone();
         chol.solve_many_in_place(&mut theirs, 1).unwrap();
-        assert!(residual(n, &cp, &ri, &v, &ours, &b) < 1e-13);
+        assert!(norm(&residual(&cp, &ri, &v, &ours, &b)) / norm(&b) < 1e-13);
         let scale = theirs.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         for (a, t) in ours.iter().zip(&theirs) {
             assert!((a - t).abs() <= 1e-12 * scale);

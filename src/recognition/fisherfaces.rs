@@ -142,8 +142,8 @@ impl FisherModel {
     /// One model per set of within-class deviations (see [`Self::train_with_deviations`]),
     /// all on the same samples. The PCA — a Gram matrix and an eigen decomposition of M × M,
     /// the costly part — is computed once for all of them.
-    pub fn train_variants(
-        samples: &[Vec<f64>],
+    pub fn train_variants<S: AsRef<[f64]>>(
+        samples: &[S],
         labels: &[usize],
         deviation_sets: &[&[Vec<f64>]],
         params: &FisherParams,
@@ -189,7 +189,7 @@ struct Pca {
 }
 
 impl Pca {
-    fn new(samples: &[Vec<f64>], labels: &[usize], params: &FisherParams) -> Result<Pca> {
+    fn new<S: AsRef<[f64]>>(samples: &[S], labels: &[usize], params: &FisherParams) -> Result<Pca> {
         let m = samples.len();
         if m != labels.len() {
             return Err(Error::algorithm(
@@ -207,14 +207,18 @@ impl Pca {
                 format!("need at least 2 classes, got {c}"),
             ));
         }
-        let d = samples[0].len();
-        if d == 0 || samples.iter().any(|s| s.len() != d) {
+        let d = samples[0].as_ref().len();
+        if d == 0 || samples.iter().any(|s| s.as_ref().len() != d) {
             return Err(Error::algorithm(
                 "fisherfaces",
                 "samples must be non-empty vectors of equal length",
             ));
         }
-        if samples.iter().flatten().any(|x| !x.is_finite()) {
+        if samples
+            .iter()
+            .flat_map(|s| s.as_ref())
+            .any(|x| !x.is_finite())
+        {
             return Err(Error::algorithm("fisherfaces", "a sample is not finite"));
         }
         let class_of: Vec<usize> = labels
@@ -223,10 +227,10 @@ impl Pca {
             .collect();
         let mut mean = DVector::<f64>::zeros(d);
         for s in samples {
-            mean += DVector::from_column_slice(s);
+            mean += DVector::from_column_slice(s.as_ref());
         }
         mean /= m as f64;
-        let a = Mat::<f64>::from_fn(d, m, |i, j| samples[j][i] - mean[i]);
+        let a = Mat::<f64>::from_fn(d, m, |i, j| samples[j].as_ref()[i] - mean[i]);
         let method = if m > c {
             Method::Fisherfaces
         } else {

@@ -831,23 +831,13 @@ pub fn score(
     with_synthetic: bool,
     params: &ProtocolParams,
 ) -> Result<Evaluation> {
-    score_with(samples, with_synthetic, with_synthetic, params)
-}
-
-/// As [`score`], with the learned deviations only when `with_learned` too (`evaluate`'s
-/// `synthetic_only` figure: the synthetic expressions alone).
-pub fn score_with(
-    samples: &Samples,
-    with_synthetic: bool,
-    with_learned: bool,
-    params: &ProtocolParams,
-) -> Result<Evaluation> {
-    let mut evals = score_variants(samples, with_synthetic, &[with_learned], params)?;
+    let mut evals = score_variants(samples, with_synthetic, &[with_synthetic], params)?;
     Ok(evals.remove(0))
 }
 
-/// One [`score_with`] per entry of `with_learned`, on the same gallery: the models share
-/// their PCA ([`FisherModel::train_variants`]), which is most of the training time.
+/// One [`score`] per entry of `with_learned` (the learned deviations on or off; `evaluate`'s
+/// `synthetic_only` figure has them off), on the same gallery: the models share their PCA
+/// ([`FisherModel::train_variants`]), which is most of the training time.
 pub fn score_variants(
     samples: &Samples,
     with_synthetic: bool,
@@ -879,7 +869,7 @@ pub fn score_variants(
     }
     let id_of = |s: &str| identities.binary_search_by(|x| x.as_str().cmp(s)).ok();
     let labels: Vec<usize> = gallery.iter().map(|s| id_of(&s.subject).unwrap()).collect();
-    let xs: Vec<Vec<f64>> = gallery.iter().map(|s| s.features.clone()).collect();
+    let xs: Vec<&[f64]> = gallery.iter().map(|s| s.features.as_slice()).collect();
     let t1 = Instant::now();
     let sets: Vec<&[Vec<f64>]> = with_learned
         .iter()
@@ -892,7 +882,6 @@ pub fn score_variants(
         })
         .collect();
     let models = FisherModel::train_variants(&xs, &labels, &sets, &params.fisher)?;
-    drop(xs);
     let t_train = t1.elapsed().as_secs_f64();
     models
         .into_iter()
