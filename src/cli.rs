@@ -182,6 +182,11 @@ pub enum Command {
         /// Muscle definitions (RON, like assets/muscles.ron) instead of the built-in ones.
         #[arg(long)]
         muscles: Option<PathBuf>,
+        /// Also write the fitted face as binary PLY with the signed distance to the scan
+        /// (mm, + = scan in front) as vertex quality; 0 where no scan point is within 8 mm.
+        /// MeshLab colours it by quality: where the fit misses, and in which direction.
+        #[arg(long)]
+        residual_ply: Option<PathBuf>,
     },
     /// Face recognition on a GavabDB-style dataset (paper section 4): Fisherfaces on range
     /// images, gallery = frontal1 (+ synthetic expressions), probes = frontal2, sonrisa, risa,
@@ -594,12 +599,16 @@ pub fn run(cli: Cli) -> Result<()> {
             out,
             name,
             muscles,
+            residual_ply,
         }) => print_json(&fem::fit_expression(
             &neutral_scan,
             &expression_scan,
             landmarks.as_deref(),
             expression_landmarks.as_deref(),
-            &out,
+            &fem::FitOutputs {
+                preset: &out,
+                residual_ply: residual_ply.as_deref(),
+            },
             name.as_deref(),
             muscles.as_deref(),
         )?),

@@ -175,8 +175,11 @@ fn fit_expression_writes_a_loadable_preset() {
         lm_paths.push(path);
     }
     let preset = dir.path().join("smile.ron");
+    let residual = dir.path().join("residual.ply");
     let v = run(&[
         "fit-expression",
+        "--residual-ply",
+        residual.to_str().unwrap(),
         neutral.to_str().unwrap(),
         smile.to_str().unwrap(),
         "--landmarks",
@@ -191,10 +194,41 @@ fn fit_expression_writes_a_loadable_preset() {
     println!("{v}");
     assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
     assert!(v["closest_preset"].is_string());
-    // 18 muscles and the jaw's four actuators.
+    // 18 muscles, the two cheek bulges and the jaw's four actuators.
     let fitted = v["activations"].as_object().unwrap();
-    assert_eq!(fitted.len(), 22);
+    assert_eq!(fitted.len(), 24);
     assert!(fitted.contains_key("jaw_open"));
+    // The residual map: the fitted face with its signed distance to the scan per vertex.
+    let bytes = std::fs::read(&residual).unwrap();
+    let (mesh, quality) = facesynth::io::ply::parse_with_scalar(
+        &bytes,
+        &residual,
+        &facesynth::io::default_limits(),
+        Some("quality"),
+    )
+    .unwrap();
+    let quality = quality.expect("quality property");
+    let r = &v["residual_ply"];
+    let on = r["vertices_on_scan"].as_u64().unwrap() as usize;
+    assert_eq!(
+        on + r["vertices_off_scan"].as_u64().unwrap() as usize,
+        mesh.vertex_count()
+    );
+    assert_eq!(quality.len(), mesh.vertex_count());
+    let on_scan: Vec<f64> = quality
+        .iter()
+        .filter(|&&q| q != 0.0)
+        .map(|&q| q as f64)
+        .collect();
+    assert!(on_scan.len() <= on && on_scan.len() > on * 9 / 10);
+    let rms = (on_scan.iter().map(|q| q * q).sum::<f64>() / on as f64).sqrt();
+    assert!(
+        (rms - r["rms_mm"].as_f64().unwrap()).abs() < 1e-3,
+        "{rms} vs {r}"
+    );
+    // Both signs occur, and no residual exceeds the 8 mm search radius.
+    assert!(on_scan.iter().any(|&q| q > 0.0) && on_scan.iter().any(|&q| q < 0.0));
+    assert!(on_scan.iter().all(|q| q.abs() <= 8.0));
     let set = facesynth::fem::expressions::ExpressionSet::load(&preset).unwrap();
     assert_eq!(set.expressions[0].name, "learned_smile");
     // The learned preset synthesizes like a built-in one.

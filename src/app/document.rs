@@ -755,7 +755,7 @@ impl Document {
             surface_id: self.fem_surface_id(),
             feature_vertices,
             params: self.edits.fem,
-            muscles: self.edits.muscles.clone(),
+            muscles: Box::new(self.edits.muscles.clone()),
         }]
     }
 

@@ -51,7 +51,7 @@ pub enum Job {
         surface_id: u64,
         feature_vertices: [u32; FeaturePoint::COUNT],
         params: FemParams,
-        muscles: MuscleSet,
+        muscles: Box<MuscleSet>,
     },
 }
 
@@ -126,7 +126,7 @@ impl WorkerState {
                 params,
                 muscles,
             } => JobResult::Fem(
-                self.fem(&surface, surface_id, feature_vertices, params, muscles)
+                self.fem(&surface, surface_id, feature_vertices, params, *muscles)
                     .map(Box::new),
             ),
             Job::FitExpression {

@@ -220,7 +220,7 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "factorization_millis": factor_millis,
         "one_solve_millis": solve_millis,
         "one_solve_min_millis": solve_min_millis,
-        // The whole basis: 18 muscles plus the jaw's 4 prescribed motions.
+        // The whole basis: 18 muscles, 2 cheek bulges and the jaw's 4 prescribed motions.
         "actuators": model.actuator_count(),
         "basis_millis": basis_millis,
         "factor_plus_basis_millis": round(factor_millis + basis_millis, 3),
@@ -308,13 +308,19 @@ pub fn bench_fem() -> Result<serde_json::Value> {
     }))
 }
 
+/// Where `fit-expression` writes: the preset, and optionally the residual map.
+pub struct FitOutputs<'a> {
+    pub preset: &'a Path,
+    pub residual_ply: Option<&'a Path>,
+}
+
 /// `facesynth fit-expression`.
 pub fn fit_expression(
     neutral: &Path,
     expression: &Path,
     landmarks: Option<&Path>,
     expression_landmarks: Option<&Path>,
-    out: &Path,
+    outputs: &FitOutputs,
     name: Option<&str>,
     muscles: Option<&Path>,
 ) -> Result<serde_json::Value> {
@@ -368,7 +374,34 @@ pub fn fit_expression(
         }],
     };
     let text = ron::ser::to_string_pretty(&preset, ron::ser::PrettyConfig::default())?;
+    let out = outputs.preset;
     io::write_text_atomic(out, &(text + "\n"))?;
+    let residual = match outputs.residual_ply {
+        Some(path) => {
+            let fitted = model.deformed_surface(&fit.activations)?;
+            let r = crate::fem::fit::signed_residuals(
+                &fitted,
+                &fit.aligned_scan,
+                FitParams::default().max_distance_mm,
+            );
+            let quality: Vec<f32> = r.iter().map(|d| d.unwrap_or(0.0) as f32).collect();
+            io::write_atomic(path, |w| {
+                io::ply::write_binary(w, &fitted, Some(("quality", &quality)))
+            })?;
+            let inside: Vec<f64> = r.iter().flatten().copied().collect();
+            let rms =
+                (inside.iter().map(|d| d * d).sum::<f64>() / inside.len().max(1) as f64).sqrt();
+            Some(json!({
+                "path": path,
+                "vertices_on_scan": inside.len(),
+                "vertices_off_scan": r.len() - inside.len(),
+                "rms_mm": round(rms, 4),
+                "max_in_front_mm": round(inside.iter().copied().fold(0.0, f64::max), 4),
+                "max_behind_mm": round(-inside.iter().copied().fold(0.0, f64::min), 4),
+            }))
+        }
+        None => None,
+    };
     let (closest, closest_rms) = fit
         .closest_preset
         .map(|(n, r)| (Some(n), Some(round(r, 4))))
@@ -384,5 +417,6 @@ pub fn fit_expression(
         "closest_preset": closest,
         "closest_preset_rms_mm": closest_rms,
         "vertices_used": fit.vertices_used,
+        "residual_ply": residual,
     }))
 }

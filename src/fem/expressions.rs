@@ -1,7 +1,7 @@
 //! Expression presets: FACS-style descriptions mapped to muscle activations
 //! (`assets/expressions.ron`, 18 presets, plus optional user files).
 //!
-//! An expression is `u = Σ a_i u_i` over the muscle basis, so applying one costs an 18 + 4-term sum (muscles, jaw).
+//! An expression is `u = Σ a_i u_i` over the muscle basis, so applying one costs an 18 + 2 + 4-term sum (muscles, cheek bulges, jaw).
 
 use crate::{Error, FemError, Result};
 use serde::{Deserialize, Serialize};
@@ -155,10 +155,12 @@ mod tests {
         let set = ExpressionSet::builtin();
         assert_eq!(set.expressions.len(), 18);
         let muscles = MuscleSet::builtin();
-        assert_eq!(muscles.names().len(), 18);
+        // Waters' 9 pairs, then the cheek bulge pair.
+        assert_eq!(muscles.muscles.len(), 9);
+        assert_eq!(muscles.names().len(), 20);
         // The presets may also open the jaw (`jaw_open`, degrees).
         let names = muscles.actuator_names();
-        assert_eq!(names.len(), 22);
+        assert_eq!(names.len(), 24);
         for e in &set.expressions {
             let a = e.activations_for(&names).unwrap();
             assert!(a.iter().any(|&x| x > 0.0), "{}", e.name);
@@ -185,9 +187,9 @@ mod tests {
             ..MuscleSet::builtin()
         };
         let names = off.actuator_names();
-        assert_eq!(names.len(), 18);
+        assert_eq!(names.len(), 20);
         let b = surprise.activations_for(&names).unwrap();
-        assert_eq!(&b[..], &a[..18]);
+        assert_eq!(&b[..], &a[..20]);
         // "jaw" is not a left/right pair name: the two shifts would cancel.
         let pair = Expression {
             name: "t".into(),

@@ -18,6 +18,11 @@
 //! along `ẑ` (negative: under the skin, as bone origins are). A muscle acts on the skin-surface nodes within `radius` of its insertion with the
 //! smooth fall-off weight `w = (1 − (d/r)²)²`; each node is pulled towards the origin with
 //! force `force_n · w / Σw`, so the muscle's total force at activation 1 is `force_n` newtons.
+//!
+//! The same file defines `bulges`: pairs resolved exactly like muscles (and actuated after
+//! them) whose "origin" lies in front of the skin, so they push outwards. The built-in pair,
+//! `cheek_raiser` (AU6), stands in for the cheek bunching a smile causes, which a linear
+//! muscle cannot (see `assets/muscles.ron` for what it was measured to explain).
 
 use super::FaceModel;
 use crate::feature_points::FeaturePoint;
@@ -66,6 +71,13 @@ pub struct MuscleSet {
     /// off (then the presets' jaw keys are ignored).
     #[serde(default = "builtin_jaw")]
     pub jaw: Option<super::jaw::JawDef>,
+    /// Soft-tissue loads that are not among Waters' 18 muscles: pairs defined like a muscle
+    /// whose "origin" lies in front of the skin, so they push the tissue outwards. They stand
+    /// in for the bunching of the cheek (AU6) that a contracting muscle causes in a real face
+    /// and that a linear small-strain model cannot produce (it does not thicken under
+    /// shortening). Files without the field get the built-in ones; `bulges: []` turns them off.
+    #[serde(default = "builtin_bulges")]
+    pub bulges: Vec<MuscleDef>,
 }
 
 /// A muscle resolved on one face: its skin nodes and their forces at unit activation.
@@ -150,8 +162,13 @@ fn builtin_jaw() -> Option<super::jaw::JawDef> {
     MuscleSet::builtin().jaw
 }
 
+/// The built-in soft-tissue loads, for files written before them.
+fn builtin_bulges() -> Vec<MuscleDef> {
+    MuscleSet::builtin().bulges
+}
+
 impl MuscleSet {
-    /// The built-in 9 pairs = 18 muscles.
+    /// The built-in 9 pairs = 18 muscles, the cheek loads and the jaw.
     pub fn builtin() -> Self {
         Self::parse(BUILTIN_RON, Path::new("assets/muscles.ron"))
             .expect("built-in muscles.ron parses")
@@ -161,7 +178,14 @@ impl MuscleSet {
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let set: MuscleSet = ron::from_str(text)
             .map_err(|e| Error::syntax(path, e.span.start.line, e.code.to_string()))?;
-        for def in &set.muscles {
+        let mut seen = std::collections::HashSet::new();
+        for def in set.pairs() {
+            if !seen.insert(def.name.as_str()) {
+                return Err(Error::invalid(
+                    path,
+                    format!("two muscle or bulge pairs are named `{}`", def.name),
+                ));
+            }
             for anchor in [&def.insertion, &def.origin] {
                 if FeaturePoint::from_name(&anchor.point).is_none() {
                     return Err(Error::invalid(
@@ -185,7 +209,7 @@ impl MuscleSet {
         }
         if let Some(jaw) = &set.jaw {
             jaw.check().map_err(|why| Error::invalid(path, why))?;
-            if set.muscles.iter().any(|d| d.name == "jaw") {
+            if set.pairs().any(|d| d.name == "jaw") {
                 return Err(Error::invalid(
                     path,
                     "a muscle pair named `jaw` would clash with the jaw's actuators",
@@ -200,15 +224,24 @@ impl MuscleSet {
         Self::parse(&crate::io::read_text_file(path)?, path)
     }
 
-    /// Muscle names in model order: per pair, left then right.
+    /// Every left/right pair in model order: the muscles, then the bulges.
+    pub fn pairs(&self) -> impl Iterator<Item = &MuscleDef> {
+        self.muscles.iter().chain(&self.bulges)
+    }
+
+    /// [`pairs`](Self::pairs), mutable (the editor's definition sliders).
+    pub fn pairs_mut(&mut self) -> impl Iterator<Item = &mut MuscleDef> {
+        self.muscles.iter_mut().chain(&mut self.bulges)
+    }
+
+    /// Muscle and bulge names in model order: per pair, left then right.
     pub fn names(&self) -> Vec<String> {
-        self.muscles
-            .iter()
+        self.pairs()
             .flat_map(|d| [format!("{}_left", d.name), format!("{}_right", d.name)])
             .collect()
     }
 
-    /// Actuator names in basis order: the muscles, then the jaw's (if defined).
+    /// Actuator names in basis order: the muscles, the bulges, then the jaw's (if defined).
     pub fn actuator_names(&self) -> Vec<String> {
         let mut names = self.names();
         if self.jaw.is_some() {
@@ -217,15 +250,15 @@ impl MuscleSet {
         names
     }
 
-    /// Resolves every muscle on `model`'s surface (left then right per pair).
+    /// Resolves every muscle and bulge on `model`'s surface (left then right per pair).
     pub fn resolve(&self, model: &FaceModel) -> Result<Vec<Muscle>> {
         let surface = &model.surface;
         let position =
             |p: FeaturePoint| surface.positions_mm[model.feature_vertices[p.index()] as usize];
         let frame = FaceFrame::new(position)?;
         let fixed = model.fixed_nodes();
-        let mut out = Vec::with_capacity(2 * self.muscles.len());
-        for def in &self.muscles {
+        let mut out = Vec::with_capacity(2 * (self.muscles.len() + self.bulges.len()));
+        for def in self.pairs() {
             for mirrored in [false, true] {
                 let place = |a: &Anchor| {
                     let mut p = FeaturePoint::from_name(&a.point).expect("validated");
@@ -300,4 +333,63 @@ pub(super) fn snap_to_skin(surface: &crate::Mesh, frame: &FaceFrame, target: DVe
         }
     }
     best.1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn files_without_bulges_get_the_builtin_ones_and_names_must_not_repeat() {
+        let builtin = MuscleSet::builtin();
+        assert_eq!(builtin.bulges.len(), 1);
+        let mut old = ron::to_string(&builtin).unwrap();
+        let at = old.find(",bulges:").expect("serialised bulges field");
+        old.truncate(at);
+        old.push(')');
+        let parsed = MuscleSet::parse(&old, Path::new("old.ron")).unwrap();
+        assert_eq!(parsed.bulges, builtin.bulges);
+        assert_eq!(parsed.jaw, builtin.jaw);
+        // A bulge named like a muscle would give two actuators one name.
+        let mut clash = builtin.clone();
+        clash.bulges[0].name = clash.muscles[0].name.clone();
+        let text = ron::to_string(&clash).unwrap();
+        let err = MuscleSet::parse(&text, Path::new("clash.ron")).unwrap_err();
+        assert!(err.to_string().contains("clash.ron"), "{err}");
+        assert!(err.to_string().contains("named"), "{err}");
+    }
+
+    #[test]
+    fn the_cheek_bulge_pushes_the_skin_outwards_and_the_muscles_do_not() {
+        let face = crate::generic_face::build();
+        let mut model = FaceModel::from_generic(&face, &super::super::FemParams::default())
+            .expect("generic face model");
+        let set = MuscleSet::builtin();
+        model.set_muscles(&set).unwrap();
+        let s = &model.surface;
+        let outward = |m: &Muscle| -> f64 {
+            let along: f64 = m
+                .nodes
+                .iter()
+                .zip(&m.forces_n)
+                .map(|(&v, f)| f.dot(s.normals[v as usize]))
+                .sum();
+            along / m.force_n
+        };
+        let all: Vec<(String, f64)> = model
+            .muscles()
+            .iter()
+            .map(|m| (m.name.clone(), outward(m)))
+            .collect();
+        for (name, o) in &all {
+            if name.starts_with("cheek_raiser") {
+                // The push is forwards (the face's axis) and the lateral cheek faces sideways
+                // too, so about half of it is along the normal.
+                assert!(*o > 0.3, "{name}: {o} ({all:?})");
+            } else {
+                // A muscle pulls along the skin or into it, never much out of it.
+                assert!(*o < 0.15, "{name}: {o} ({all:?})");
+            }
+        }
+    }
 }

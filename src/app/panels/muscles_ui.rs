@@ -1,4 +1,4 @@
-//! Muscles panel: 18 activation sliders and the jaw's four (instant preview through the
+//! Muscles panel: 18 muscle sliders, the cheek bulges' two and the jaw's four (instant preview through the
 //! basis), mirror left↔right, and each pair's definition (force, insertion, origin, radius),
 //! which re-solves that basis on the worker with the cached factorization.
 
@@ -19,8 +19,7 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         .doc
         .edits
         .muscles
-        .muscles
-        .iter()
+        .pairs()
         .map(|d| d.name.clone())
         .collect();
     egui::Grid::new("activations")
@@ -103,7 +102,7 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                 .unwrap_or_else(|| app.doc.edits.muscles.clone());
             let mut started = false;
             let mut commit = false;
-            for def in &mut set.muscles {
+            for def in set.pairs_mut() {
                 ui.collapsing(&def.name, |ui| {
                     if !def.description.is_empty() {
                         ui.small(&def.description);
@@ -116,7 +115,7 @@ pub fn muscles_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     track(ui.add(egui::Slider::new(&mut def.force_n, 0.0..=1.0).text("force (N)")));
                     track(
                         ui.add(
-                            egui::Slider::new(&mut def.radius, 0.05..=0.8)
+                            egui::Slider::new(&mut def.radius, 0.05..=1.2)
                                 .text("fall-off radius (face units)"),
                         ),
                     );
