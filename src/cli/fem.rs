@@ -345,13 +345,14 @@ pub fn fit_expression(
             .map(|r| r.landmarks),
     };
     let presets = ExpressionSet::builtin();
+    let params = FitParams::default();
     let fit = fit_expression(
         &model,
         Some(&neutral_scan),
         &scan,
         scan_landmarks.as_ref(),
         &presets,
-        &FitParams::default(),
+        &params,
     )?;
     let names: Vec<String> = model.actuator_names();
     let activations: std::collections::BTreeMap<String, f64> = names
@@ -374,15 +375,14 @@ pub fn fit_expression(
         }],
     };
     let text = ron::ser::to_string_pretty(&preset, ron::ser::PrettyConfig::default())?;
-    let out = outputs.preset;
-    io::write_text_atomic(out, &(text + "\n"))?;
+    io::write_text_atomic(outputs.preset, &(text + "\n"))?;
     let residual = match outputs.residual_ply {
         Some(path) => {
             let fitted = model.deformed_surface(&fit.activations)?;
             let r = crate::fem::fit::signed_residuals(
                 &fitted,
                 &fit.aligned_scan,
-                FitParams::default().max_distance_mm,
+                params.max_distance_mm,
             );
             let quality: Vec<f32> = r.iter().map(|d| d.unwrap_or(0.0) as f32).collect();
             io::write_atomic(path, |w| {
@@ -408,7 +408,7 @@ pub fn fit_expression(
         .unwrap_or((None, None));
     Ok(json!({
         "name": name,
-        "out": out,
+        "out": outputs.preset,
         "activations": activations,
         "rms_before_mm": round(fit.rms_before_mm, 4),
         "rms_after_mm": round(fit.rms_after_mm, 4),
