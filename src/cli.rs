@@ -162,8 +162,8 @@ pub enum Command {
         #[arg(long)]
         presets: Option<PathBuf>,
     },
-    /// Learn an expression from a scan: fit the 18 muscle and 4 jaw activations (non-negative least
-    /// squares) so the FEM face of NEUTRAL_SCAN meets EXPRESSION_SCAN; writes a preset (RON).
+    /// Learn an expression from a scan: fit the 18 muscle, 8 soft-tissue and 4 jaw activations (non-negative
+    /// least squares) so the FEM face of NEUTRAL_SCAN meets EXPRESSION_SCAN; writes a preset (RON).
     FitExpression {
         neutral_scan: PathBuf,
         expression_scan: PathBuf,

@@ -157,8 +157,8 @@ fn fem_editing_softer_skin_moves_more_undo_restores_and_presets_round_trip() {
     apply_with(&mut worker, &mut doc, Command::BuildFem);
     assert!(doc.error.is_none(), "{:?}", doc.error);
     let fem = doc.fem.as_ref().expect("built");
-    // Waters' 18 muscles and the two cheek bulges.
-    assert_eq!(fem.muscles.len(), 20);
+    // Waters' 18 muscles and the 4 pairs of soft-tissue loads.
+    assert_eq!(fem.muscles.len(), 26);
     apply_with(
         &mut worker,
         &mut doc,

@@ -194,9 +194,9 @@ fn fit_expression_writes_a_loadable_preset() {
     println!("{v}");
     assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
     assert!(v["closest_preset"].is_string());
-    // 18 muscles, the two cheek bulges and the jaw's four actuators.
+    // 18 muscles, the 8 soft-tissue loads (4 pairs) and the jaw's four actuators.
     let fitted = v["activations"].as_object().unwrap();
-    assert_eq!(fitted.len(), 24);
+    assert_eq!(fitted.len(), 30);
     assert!(fitted.contains_key("jaw_open"));
     // The residual map: the fitted face with its signed distance to the scan per vertex.
     let bytes = std::fs::read(&residual).unwrap();

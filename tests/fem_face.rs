@@ -414,3 +414,47 @@ fn the_model_can_live_on_a_worker_thread() {
     fn send_sync<T: Send + Sync + Clone>() {}
     send_sync::<FaceModel>();
 }
+
+#[test]
+fn the_fixed_border_is_editable_and_holds_what_it_says() {
+    let face = facesynth::generic_face::build();
+    let n = face.mesh.vertex_count();
+    let held = |fixed: &[bool]| fixed[..n].iter().filter(|&&f| f).count();
+    let count = |rings| held(&facesynth::fem::fixed_nodes(&face.mesh, rings));
+    // 0: only the cranium layer; 1: the paper's border loop; more rings hold strictly more.
+    assert_eq!(count(0), 0);
+    assert_eq!(
+        count(1),
+        held(&facesynth::fem::default_fixed_nodes(&face.mesh))
+    );
+    assert!(0 < count(1) && count(1) < count(2) && count(2) < count(3));
+    let cranium = facesynth::fem::fixed_nodes(&face.mesh, 0);
+    assert!(cranium[2 * n..].iter().all(|&f| f));
+
+    // Under the outer cheek load the border loop stays put when held and moves when free.
+    let bulge = |rings| {
+        let params = FemParams {
+            fixed_border_rings: rings,
+            ..FemParams::default()
+        };
+        let mut model = FaceModel::from_generic(&face, &params).unwrap();
+        model.factor().unwrap();
+        model.set_muscles(&MuscleSet::builtin()).unwrap();
+        model.compute_basis().unwrap();
+        let k = model
+            .actuator_names()
+            .iter()
+            .position(|a| a == "buccal_bulge_left")
+            .unwrap();
+        let u = model.basis_displacement(k).unwrap();
+        let border = facesynth::fem::default_fixed_nodes(&model.surface);
+        (0..n)
+            .filter(|&v| border[v])
+            .map(|v| u[v].length())
+            .fold(0.0, f64::max)
+    };
+    assert_eq!(bulge(1), 0.0);
+    let free = bulge(0);
+    println!("buccal_bulge_left, border free: the border loop moves up to {free:.3} mm");
+    assert!(free > 0.05, "{free}");
+}

@@ -45,7 +45,7 @@ pub struct DenoiseState {
 /// A move larger than this counts as a removed spike (scanner noise is ~0.15 mm).
 pub const SPIKE_MM: f64 = 2.0;
 
-/// An expression learned from a scan (fit of the 18 muscle and 4 jaw activations, paper: "additional
+/// An expression learned from a scan (fit of the 18 muscle, 8 soft-tissue and 4 jaw activations, paper: "additional
 /// expressions can be learned from input faces").
 #[derive(Debug, Clone)]
 pub struct FitState {
@@ -212,7 +212,7 @@ pub enum Command {
     SetFemParams(FemParams),
     /// New muscle definitions: the worker re-solves the basis with the cached factor.
     SetMuscles(MuscleSet),
-    /// New activations: a 22-term sum (muscles and jaw) on the UI thread, no solve.
+    /// New activations: a 30-term sum (muscles, soft-tissue loads, jaw) on the UI thread, no solve.
     SetActivations(BTreeMap<String, f64>),
     /// Set the activations to a preset's.
     ApplyPreset(String),

@@ -1,5 +1,5 @@
 //! `facesynth view --measure-slider N`: the editor's responsiveness, measured in the real
-//! window. Drives the zygomatic sliders for N frames (each frame: 22-term basis sum, new GPU
+//! window. Drives the zygomatic sliders for N frames (each frame: 30-term basis sum, new GPU
 //! mesh, render) and records the interval between frames (on a software renderer mostly the
 //! rasterizer's time) and eframe's CPU time of the UI thread, then changes the skin modulus and
 //! times the worker's refactor + basis re-solve. Prints one JSON object and closes.
@@ -13,7 +13,7 @@ pub struct SliderMeasurement {
     frames: u32,
     last_frame: Option<Instant>,
     frame_ms: Vec<f64>,
-    /// Scene rebuild per frame (22-term basis sum, normals, GPU arrays), ms.
+    /// Scene rebuild per frame (30-term basis sum, normals, GPU arrays), ms.
     ui_ms: Vec<f64>,
     /// eframe's CPU time of the previous frame (ui + tessellation + render submission, vsync wait excluded), ms.
     cpu_ms: Vec<f64>,

@@ -195,11 +195,12 @@ impl WorkerState {
         let start = Instant::now();
         let e = |e: crate::Error| e.to_string();
         // Reuse the model when only materials or muscles changed; a new surface or new layer
-        // thicknesses need a new volume.
+        // thicknesses need a new volume, a new fixed border a new system.
         let reusable = self.fem.as_ref().is_some_and(|c| {
             c.surface_id == surface_id
                 && c.model.params.layers.skin_thickness_mm == params.layers.skin_thickness_mm
                 && c.model.params.layers.fat_thickness_mm == params.layers.fat_thickness_mm
+                && c.model.params.fixed_border_rings == params.fixed_border_rings
         });
         let what;
         let mut note = String::new();

@@ -220,7 +220,7 @@ fn bench_model(face: &GenericFace) -> Result<serde_json::Value> {
         "factorization_millis": factor_millis,
         "one_solve_millis": solve_millis,
         "one_solve_min_millis": solve_min_millis,
-        // The whole basis: 18 muscles, 2 cheek bulges and the jaw's 4 prescribed motions.
+        // The whole basis: 18 muscles, 8 soft-tissue loads and the jaw's 4 prescribed motions.
         "actuators": model.actuator_count(),
         "basis_millis": basis_millis,
         "factor_plus_basis_millis": round(factor_millis + basis_millis, 3),

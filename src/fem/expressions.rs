@@ -2,7 +2,7 @@
 //! (`assets/expressions.ron`, 18 presets, plus optional user files).
 //!
 //! An expression is `u = Σ a_i u_i` over the muscle basis, so applying one costs an
-//! 18 + 2 + 4-term sum (muscles, cheek bulges, jaw).
+//! 18 + 8 + 4-term sum (muscles, soft-tissue loads, jaw).
 
 use crate::{Error, FemError, Result};
 use serde::{Deserialize, Serialize};
@@ -156,12 +156,13 @@ mod tests {
         let set = ExpressionSet::builtin();
         assert_eq!(set.expressions.len(), 18);
         let muscles = MuscleSet::builtin();
-        // Waters' 9 pairs, then the cheek bulge pair.
+        // Waters' 9 pairs, then the 4 soft-tissue load pairs (see muscles.ron).
         assert_eq!(muscles.muscles.len(), 9);
-        assert_eq!(muscles.names().len(), 20);
+        assert_eq!(muscles.bulges.len(), 4);
+        assert_eq!(muscles.names().len(), 26);
         // The presets may also open the jaw (`jaw_open`, degrees).
         let names = muscles.actuator_names();
-        assert_eq!(names.len(), 24);
+        assert_eq!(names.len(), 30);
         for e in &set.expressions {
             let a = e.activations_for(&names).unwrap();
             assert!(a.iter().any(|&x| x > 0.0), "{}", e.name);
@@ -185,9 +186,9 @@ mod tests {
             ..MuscleSet::builtin()
         };
         let names = off.actuator_names();
-        assert_eq!(names.len(), 20);
+        assert_eq!(names.len(), 26);
         let b = surprise.activations_for(&names).unwrap();
-        assert_eq!(&b[..], &a[..20]);
+        assert_eq!(&b[..], &a[..26]);
         // "jaw" is not a left/right pair name: the two shifts would cancel.
         let pair = Expression {
             name: "t".into(),

@@ -155,6 +155,15 @@ pub struct FemParams {
     pub skin: Material,
     /// Fatty tissue: E = 0.12 kPa, ν = 0.45.
     pub fat: Material,
+    /// How much of the face's outer border is held (all three layers): 1 = its boundary loop
+    /// (the paper's border nodes, default), k = that loop and the k − 1 vertex rings inside it,
+    /// 0 = none (only the cranium layer holds the face). Files without the field get 1.
+    #[serde(default = "default_fixed_border_rings")]
+    pub fixed_border_rings: usize,
+}
+
+fn default_fixed_border_rings() -> usize {
+    1
 }
 
 impl Default for FemParams {
@@ -169,6 +178,7 @@ impl Default for FemParams {
                 young_modulus_pa: 120.0,
                 poisson_ratio: 0.45,
             },
+            fixed_border_rings: default_fixed_border_rings(),
         }
     }
 }
@@ -241,7 +251,7 @@ impl FaceModel {
         let quality = layers::element_quality(&volume);
         let extrusion_millis = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
-        let fixed = default_fixed_nodes(surface);
+        let fixed = fixed_nodes(surface, params.fixed_border_rings);
         let system = ReducedSystem::new(
             &volume,
             &fixed,
@@ -697,15 +707,44 @@ impl FaceModel {
 /// Default boundary conditions (paper): every cranium-layer node, plus all three layers under
 /// the face's **outer** border (the longest boundary loop). Eye and mouth rims stay free.
 pub fn default_fixed_nodes(surface: &Mesh) -> Vec<bool> {
+    fixed_nodes(surface, 1)
+}
+
+/// Every cranium-layer node, plus all three layers under the outer border loop and the
+/// `border_rings − 1` vertex rings inside it (none for 0; see [`FemParams::fixed_border_rings`]).
+pub fn fixed_nodes(surface: &Mesh, border_rings: usize) -> Vec<bool> {
     let n = surface.vertex_count();
     let mut fixed = vec![false; 3 * n];
     fixed[2 * n..].iter_mut().for_each(|f| *f = true);
     let loops = crate::generic_face::boundary_loops(surface);
-    if let Some(outer) = loops.iter().max_by_key(|l| l.len()) {
-        for &v in outer {
-            for layer in 0..3 {
-                fixed[layer * n + v as usize] = true;
+    let Some(outer) = loops.iter().max_by_key(|l| l.len()) else {
+        return fixed;
+    };
+    if border_rings == 0 {
+        return fixed;
+    }
+    let mut held = vec![false; n];
+    let mut front: Vec<usize> = outer.iter().map(|&v| v as usize).collect();
+    front.iter().for_each(|&v| held[v] = true);
+    if border_rings > 1 {
+        let topology = crate::mesh::Topology::new(surface);
+        for _ in 1..border_rings {
+            let mut next = Vec::new();
+            for &v in &front {
+                for &w in topology.neighbours(v) {
+                    let w = w as usize;
+                    if !held[w] {
+                        held[w] = true;
+                        next.push(w);
+                    }
+                }
             }
+            front = next;
+        }
+    }
+    for (v, _) in held.iter().enumerate().filter(|(_, h)| **h) {
+        for layer in 0..3 {
+            fixed[layer * n + v] = true;
         }
     }
     fixed

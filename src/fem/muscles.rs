@@ -20,9 +20,11 @@
 //! force `force_n · w / Σw`, so the muscle's total force at activation 1 is `force_n` newtons.
 //!
 //! The same file defines `bulges`: pairs resolved exactly like muscles (and actuated after
-//! them) whose "origin" lies in front of the skin, so they push outwards. The built-in pair,
-//! `cheek_raiser` (AU6), stands in for the cheek bunching a smile causes, which a linear
-//! muscle cannot (see `assets/muscles.ron` for what it was measured to explain).
+//! them) whose "origin" lies in front of the skin, so they push outwards (or behind it, so
+//! they pull the skin in). The 4 built-in pairs stand in for what the smile does to soft
+//! tissue that a linear muscle cannot: `cheek_raiser` (AU6, the malar cheek), `buccal_bulge`
+//! (the cheek beside the pulled lip corner), `infraorbital_bulge` (the lower lid) and
+//! `nasolabial_fold` (inwards). See `assets/muscles.ron` for what they were measured to explain.
 
 use super::FaceModel;
 use crate::feature_points::FeaturePoint;
@@ -72,10 +74,11 @@ pub struct MuscleSet {
     #[serde(default = "builtin_jaw")]
     pub jaw: Option<super::jaw::JawDef>,
     /// Soft-tissue loads that are not among Waters' 18 muscles: pairs defined like a muscle
-    /// whose "origin" lies in front of the skin, so they push the tissue outwards. They stand
-    /// in for the bunching of the cheek (AU6) that a contracting muscle causes in a real face
-    /// and that a linear small-strain model cannot produce (it does not thicken under
-    /// shortening). Files without the field get the built-in ones; `bulges: []` turns them off.
+    /// whose "origin" lies in front of the skin (push out) or behind it (pull in). They stand
+    /// in for the bunching of the cheeks and lids and the deepening fold that contracting
+    /// muscles cause in a real face and that a linear small-strain model cannot produce (it
+    /// does not thicken under shortening). Files without the field get the built-in ones;
+    /// `bulges: []` turns them off.
     #[serde(default = "builtin_bulges")]
     pub bulges: Vec<MuscleDef>,
 }
@@ -355,7 +358,7 @@ mod tests {
     #[test]
     fn files_without_bulges_get_the_builtin_ones_and_names_must_not_repeat() {
         let builtin = MuscleSet::builtin();
-        assert_eq!(builtin.bulges.len(), 1);
+        assert_eq!(builtin.bulges.len(), 4);
         let old = builtin_ron_before("bulges");
         let parsed = MuscleSet::parse(&old, Path::new("old.ron")).unwrap();
         assert_eq!(parsed.bulges, builtin.bulges);
@@ -392,9 +395,12 @@ mod tests {
             .map(|m| (m.name.clone(), outward(m)))
             .collect();
         for (name, o) in &all {
-            if name.starts_with("cheek_raiser") {
+            if name.starts_with("nasolabial_fold") {
+                // The fold load pulls the skin in.
+                assert!(*o < -0.3, "{name}: {o} ({all:?})");
+            } else if name.contains("bulge") || name.starts_with("cheek_raiser") {
                 // The push is forwards (the face's axis) and the lateral cheek faces sideways
-                // too, so about half of it is along the normal.
+                // too, so only part of it is along the normal.
                 assert!(*o > 0.3, "{name}: {o} ({all:?})");
             } else {
                 // A muscle pulls along the skin or into it, never much out of it.

@@ -66,6 +66,13 @@ pub fn materials_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         "fat (mm)",
         false,
     );
+    ui.label("boundary")
+        .on_hover_text("vertex rings of the outer border held in all three layers (1 = the paper's border nodes, 0 = only the cranium layer)");
+    let r =
+        ui.add(egui::Slider::new(&mut params.fixed_border_rings, 0..=6).text("fixed border rings"));
+    let (s, f) = super::edit_phase(&r);
+    started |= s;
+    changed |= f;
     if started {
         app.commands.push(Command::Checkpoint);
     }

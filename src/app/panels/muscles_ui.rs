@@ -1,4 +1,4 @@
-//! Muscles panel: 18 muscle sliders, the cheek bulges' two and the jaw's four (instant preview
+//! Muscles panel: 18 muscle sliders, the soft-tissue loads' 8 and the jaw's four (instant preview
 //! through the basis), mirror left↔right, and each pair's definition (force, insertion, origin, radius),
 //! which re-solves that basis on the worker with the cached factorization.
 
