@@ -521,23 +521,7 @@ pub fn fem_model(
 pub fn smooth_patch(surface: &Mesh, seeds: &[usize], rings: usize, iterations: usize) -> Mesh {
     let topology = crate::mesh::Topology::new(surface);
     let n = surface.vertex_count();
-    let mut inside = vec![false; n];
-    let mut front: Vec<usize> = seeds.iter().copied().filter(|&v| v < n).collect();
-    for &v in &front {
-        inside[v] = true;
-    }
-    for _ in 0..rings {
-        let mut next = Vec::new();
-        for &v in &front {
-            for &u in topology.neighbours(v) {
-                if !inside[u as usize] {
-                    inside[u as usize] = true;
-                    next.push(u as usize);
-                }
-            }
-        }
-        front = next;
-    }
+    let inside = topology.within_rings(seeds, rings);
     let patch: Vec<usize> = (0..n).filter(|&v| inside[v]).collect();
     let mut mesh = surface.clone();
     for _ in 0..iterations {

@@ -8,8 +8,13 @@ use facesynth::{Error, FeaturePoint, FemError};
 use glam::DVec3;
 
 fn model() -> FaceModel {
+    model_with(&FemParams::default())
+}
+
+/// The generic face's model with these parameters, factored, with the built-in muscle basis.
+fn model_with(params: &FemParams) -> FaceModel {
     let face = facesynth::generic_face::build();
-    let mut model = FaceModel::from_generic(&face, &FemParams::default()).unwrap();
+    let mut model = FaceModel::from_generic(&face, params).unwrap();
     model.factor().unwrap();
     model.set_muscles(&MuscleSet::builtin()).unwrap();
     model.compute_basis().unwrap();
@@ -433,14 +438,10 @@ fn the_fixed_border_is_editable_and_holds_what_it_says() {
 
     // Under the outer cheek load the border loop stays put when held and moves when free.
     let bulge = |rings| {
-        let params = FemParams {
+        let model = model_with(&FemParams {
             fixed_border_rings: rings,
             ..FemParams::default()
-        };
-        let mut model = FaceModel::from_generic(&face, &params).unwrap();
-        model.factor().unwrap();
-        model.set_muscles(&MuscleSet::builtin()).unwrap();
-        model.compute_basis().unwrap();
+        });
         let k = model
             .actuator_names()
             .iter()

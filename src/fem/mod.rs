@@ -723,25 +723,8 @@ pub fn fixed_nodes(surface: &Mesh, border_rings: usize) -> Vec<bool> {
     if border_rings == 0 {
         return fixed;
     }
-    let mut held = vec![false; n];
-    let mut front: Vec<usize> = outer.iter().map(|&v| v as usize).collect();
-    front.iter().for_each(|&v| held[v] = true);
-    if border_rings > 1 {
-        let topology = crate::mesh::Topology::new(surface);
-        for _ in 1..border_rings {
-            let mut next = Vec::new();
-            for &v in &front {
-                for &w in topology.neighbours(v) {
-                    let w = w as usize;
-                    if !held[w] {
-                        held[w] = true;
-                        next.push(w);
-                    }
-                }
-            }
-            front = next;
-        }
-    }
+    let outer: Vec<usize> = outer.iter().map(|&v| v as usize).collect();
+    let held = crate::mesh::Topology::new(surface).within_rings(&outer, border_rings - 1);
     for (v, _) in held.iter().enumerate().filter(|(_, h)| **h) {
         for layer in 0..3 {
             fixed[layer * n + v] = true;

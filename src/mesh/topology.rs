@@ -105,6 +105,29 @@ impl Topology {
             [self.vertex_face_offsets[v] as usize..self.vertex_face_offsets[v + 1] as usize]
     }
 
+    /// Flags (one per vertex) of `seeds` and every vertex within `rings` edge hops of one of
+    /// them; seeds out of range are ignored.
+    pub fn within_rings(&self, seeds: &[usize], rings: usize) -> Vec<bool> {
+        let n = self.vertex_count();
+        let mut inside = vec![false; n];
+        let mut front: Vec<usize> = seeds.iter().copied().filter(|&v| v < n).collect();
+        for &v in &front {
+            inside[v] = true;
+        }
+        for _ in 0..rings {
+            let mut next = Vec::new();
+            for &v in &front {
+                for &u in self.neighbours(v) {
+                    if !std::mem::replace(&mut inside[u as usize], true) {
+                        next.push(u as usize);
+                    }
+                }
+            }
+            front = next;
+        }
+        inside
+    }
+
     /// Vertices within `rings` edge hops of `v` (excluding `v`), breadth first. `scratch`
     /// must hold `vertex_count()` falses and is returned that way (saves an allocation per call).
     pub fn k_ring(&self, v: usize, rings: usize, scratch: &mut [bool], out: &mut Vec<u32>) {
