@@ -512,6 +512,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 "method": method.name(), "rule": params.rule, "estimator": params.estimator,
                 "iterations_run": report.iterations_run,
                 "vertices_moved": report.vertices_moved,
+                "vertices_removed": report.vertices_removed,
                 "max_displacement_mm": report.max_displacement_mm,
                 "mean_displacement_mm": report.mean_displacement_mm,
                 "millis": millis,

@@ -37,7 +37,8 @@ pub struct DenoiseState {
     pub params: DenoiseParams,
     pub mesh: Arc<Mesh>,
     pub report: DenoiseReport,
-    /// Vertices the filter moved by more than [`SPIKE_MM`]: the long peaks it removed.
+    /// Input ids of the vertices the filter moved by more than [`SPIKE_MM`] or removed: the
+    /// long peaks it took away.
     pub spikes: Vec<u32>,
     pub millis: f64,
 }

@@ -255,8 +255,14 @@ fn build_scene(app: &EditorApp) -> SceneCache {
         if view.overlay == Overlay::Denoise
             && let Some(d) = &doc.denoised
         {
+            // Per input vertex on the original (removed vertices grey), per kept vertex on
+            // the denoised scan.
             let scale = denoise_scale(&d.report.displacement_mm);
-            colours = Some(scale.colours(&d.report.displacement_mm));
+            colours = Some(if view.show_original {
+                scale.colours(&d.report.displacement_mm)
+            } else {
+                scale.colours(&d.report.output_displacement_mm())
+            });
             legend = Some(scale);
         }
         // The shape index belongs to the mesh the detector ran on (the working scan).

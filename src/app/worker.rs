@@ -337,11 +337,12 @@ fn denoise(mesh: &Mesh, params: DenoiseParams) -> Result<DenoiseState, String> {
     let start = Instant::now();
     let mut out = mesh.clone();
     let report = crate::denoise::denoise(&mut out, &params).map_err(|e| e.to_string())?;
+    // Moved by more than a spike's height, or removed (NaN): the peaks the filter took away.
     let spikes = report
         .displacement_mm
         .iter()
         .enumerate()
-        .filter(|(_, d)| **d > SPIKE_MM)
+        .filter(|(_, d)| **d > SPIKE_MM || d.is_nan())
         .map(|(i, _)| i as u32)
         .collect();
     Ok(DenoiseState {

@@ -12,6 +12,11 @@
 //!   inwards on average;
 //! * **clean RMSE**: the filter run on the clean twin itself, RMSE of its changes (damage
 //!   done to noise-free data: ideally 0).
+//!
+//! The default filter removes the vertices it cannot repair ([`super::removal`]): the errors
+//! above are over the vertices it keeps, and the removed ones are counted apart — injected
+//! spikes (`removed_spikes`), other vertices of the noisy scans (`removed_non_spike`, real
+//! data lost) and vertices of the clean twins (`clean_removed`).
 
 use super::{DenoiseMethod, DenoiseParams, DenoiseReport, FilterNeighbours, STILL_MM, denoise};
 use crate::ground_truth::{ScanTruth, TruthGrid};
@@ -49,6 +54,12 @@ pub struct MethodScore {
     pub rmse_non_spike_mm: f64,
     pub shrinkage_mm: f64,
     pub clean_rmse_mm: f64,
+    /// Injected spike vertices removed (all scans).
+    pub removed_spikes: usize,
+    /// Other vertices of the noisy scans removed (all scans).
+    pub removed_non_spike: usize,
+    /// Vertices removed from the clean twins (all scans).
+    pub clean_removed: usize,
     pub mean_iterations_run: f64,
     pub mean_vertices_moved: f64,
     /// Mean wall time of one [`denoise`] call (topology included), ms.
@@ -68,6 +79,9 @@ struct Acc {
     along_normal: f64,
     clean_n: usize,
     clean_sse: f64,
+    removed_spikes: usize,
+    removed_non_spike: usize,
+    clean_removed: usize,
     iterations: usize,
     moved: usize,
     millis: f64,
@@ -75,8 +89,14 @@ struct Acc {
 }
 
 impl Acc {
-    fn add_noisy(&mut self, pair: &ScanPair, out: &[DVec3]) {
-        for (i, p) in out.iter().enumerate() {
+    /// `out[j]` is the output position of input vertex `kept[j]`.
+    fn add_noisy(&mut self, pair: &ScanPair, out: &[DVec3], kept: &[u32]) {
+        let spikes_in = pair.is_spike.iter().filter(|&&s| s).count();
+        let spikes_kept = kept.iter().filter(|&&i| pair.is_spike[i as usize]).count();
+        self.removed_spikes += spikes_in - spikes_kept;
+        self.removed_non_spike += (pair.is_spike.len() - kept.len()) - (spikes_in - spikes_kept);
+        for (p, &i) in out.iter().zip(kept) {
+            let i = i as usize;
             let c = pair.to_clean[i] as usize;
             let e = p.distance(pair.clean.positions_mm[c]);
             self.n += 1;
@@ -91,10 +111,12 @@ impl Acc {
         }
     }
 
-    fn add_clean(&mut self, pair: &ScanPair, out: &[DVec3]) {
-        for (p, q) in out.iter().zip(&pair.clean.positions_mm) {
+    /// `out[j]` is the output position of clean vertex `kept[j]`.
+    fn add_clean(&mut self, pair: &ScanPair, out: &[DVec3], kept: &[u32]) {
+        self.clean_removed += pair.clean.vertex_count() - kept.len();
+        for (p, &i) in out.iter().zip(kept) {
             self.clean_n += 1;
-            self.clean_sse += p.distance_squared(*q);
+            self.clean_sse += p.distance_squared(pair.clean.positions_mm[i as usize]);
         }
     }
 
@@ -117,6 +139,9 @@ impl Acc {
             rmse_non_spike_mm: div(self.sse_smooth, self.n_smooth).sqrt(),
             shrinkage_mm: -div(self.along_normal, self.n_smooth),
             clean_rmse_mm: div(self.clean_sse, self.clean_n).sqrt(),
+            removed_spikes: self.removed_spikes,
+            removed_non_spike: self.removed_non_spike,
+            clean_removed: self.clean_removed,
             mean_iterations_run: div(self.iterations as f64, self.scans),
             mean_vertices_moved: div(self.moved as f64, self.scans),
             mean_millis: div(self.millis, self.scans),
@@ -227,7 +252,8 @@ fn grid_cell(g: &TruthGrid, p: DVec3) -> Option<usize> {
 pub fn input_score(pairs: &[ScanPair]) -> MethodScore {
     let mut acc = Acc::default();
     for pair in pairs {
-        acc.add_noisy(pair, &pair.noisy.positions_mm);
+        let all: Vec<u32> = (0..pair.noisy.vertex_count() as u32).collect();
+        acc.add_noisy(pair, &pair.noisy.positions_mm, &all);
         acc.scans += 1;
     }
     acc.score("noisy input", None, 0)
@@ -246,11 +272,11 @@ pub fn score_method(
         let start = Instant::now();
         let report = denoise(&mut mesh, params)?;
         let millis = start.elapsed().as_secs_f64() * 1e3;
-        acc.add_noisy(pair, &mesh.positions_mm);
+        acc.add_noisy(pair, &mesh.positions_mm, &report.kept);
         acc.add_report(&report, millis);
         let mut clean = pair.clean.clone();
-        denoise(&mut clean, params)?;
-        acc.add_clean(pair, &clean.positions_mm);
+        let clean_report = denoise(&mut clean, params)?;
+        acc.add_clean(pair, &clean.positions_mm, &clean_report.kept);
     }
     Ok(acc.score(label, Some(params.method), params.iterations))
 }
@@ -276,13 +302,15 @@ pub fn sweep_iterations(
             let topology = Topology::new(mesh);
             let nb = FilterNeighbours::new(mesh, &topology, params.boundary);
             let mut positions = mesh.positions_mm.clone();
+            // The sweep scores the moving filter alone (the baselines remove nothing).
+            let all: Vec<u32> = (0..mesh.vertex_count() as u32).collect();
             let mut last = 0;
             let mut record = |k: usize, pos: &[DVec3]| {
                 for acc in &mut accs[last..k] {
                     if clean_run {
-                        acc.add_clean(pair, pos);
+                        acc.add_clean(pair, pos, &all);
                     } else {
-                        acc.add_noisy(pair, pos);
+                        acc.add_noisy(pair, pos, &all);
                         acc.scans += 1;
                     }
                 }
@@ -326,7 +354,8 @@ pub fn vertices_over(
         let mut mesh = pair.noisy.clone();
         let topology = Topology::new(&mesh);
         let report = denoise(&mut mesh, params)?;
-        for (i, p) in mesh.positions_mm.iter().enumerate() {
+        for (p, &i) in mesh.positions_mm.iter().zip(&report.kept) {
+            let i = i as usize;
             let c = pair.clean.positions_mm[pair.to_clean[i] as usize];
             let e = p.distance(c);
             if e > tolerance_mm {
@@ -354,12 +383,12 @@ pub fn best_k(sweep: &[MethodScore]) -> Option<&MethodScore> {
 /// A Markdown table of scores.
 pub fn markdown_table(scores: &[MethodScore]) -> String {
     let mut s = String::from(
-        "| method | k | RMSE mm | max mm | >2 mm | RMSE non-spike mm | shrinkage mm | clean RMSE mm | iters run | moved | ms/scan |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| method | k | RMSE mm | max mm | >2 mm | RMSE non-spike mm | shrinkage mm | clean RMSE mm | removed: spikes / other / of clean twins | iters run | moved | ms/scan |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in scores {
         s += &format!(
-            "| {} | {} | {:.3} | {:.2} | {} | {:.3} | {:+.4} | {:.4} | {:.1} | {:.0} | {:.2} |\n",
+            "| {} | {} | {:.3} | {:.2} | {} | {:.3} | {:+.4} | {:.4} | {} / {} / {} | {:.1} | {:.0} | {:.2} |\n",
             m.label,
             m.k,
             m.rmse_mm,
@@ -368,6 +397,9 @@ pub fn markdown_table(scores: &[MethodScore]) -> String {
             m.rmse_non_spike_mm,
             m.shrinkage_mm,
             m.clean_rmse_mm,
+            m.removed_spikes,
+            m.removed_non_spike,
+            m.clean_removed,
             m.mean_iterations_run,
             m.mean_vertices_moved,
             m.mean_millis

@@ -260,6 +260,40 @@ impl Mesh {
         remap
     }
 
+    /// Keeps the vertices with `keep[v]` (renumbered in order) and drops the others; a polygon
+    /// loses its corners at dropped vertices and is dropped itself when fewer than 3 are left
+    /// (a quad with one corner gone stays as a triangle, as scanners write it). Returns the
+    /// input id of every kept vertex (new → old).
+    pub fn retain_vertices(&mut self, keep: &[bool]) -> Vec<u32> {
+        assert_eq!(keep.len(), self.positions_mm.len(), "one flag per vertex");
+        let mut remap = vec![u32::MAX; keep.len()];
+        let mut kept = Vec::with_capacity(keep.len());
+        for (v, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
+            remap[v] = kept.len() as u32;
+            kept.push(v as u32);
+        }
+        let mut faces = Polygons::new();
+        let mut corners = Vec::with_capacity(4);
+        for f in self.faces.iter() {
+            corners.clear();
+            corners.extend(
+                f.iter()
+                    .map(|&v| remap[v as usize])
+                    .filter(|&v| v != u32::MAX),
+            );
+            if corners.len() >= 3 {
+                faces.push(&corners);
+            }
+        }
+        self.positions_mm = kept
+            .iter()
+            .map(|&v| self.positions_mm[v as usize])
+            .collect();
+        self.faces = faces;
+        self.update_normals();
+        kept
+    }
+
     /// Splits every polygon into a triangle fan (for rendering and point-in-triangle queries).
     pub fn triangles(&self) -> Vec<[u32; 3]> {
         let mut out = Vec::with_capacity(self.faces.indices.len());

@@ -48,8 +48,9 @@ pub fn denoise_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             &[
                 ("iterations run", d.report.iterations_run.to_string()),
                 ("vertices moved", d.report.vertices_moved.to_string()),
+                ("vertices removed", d.report.vertices_removed.to_string()),
                 (
-                    &format!("spikes (> {SPIKE_MM} mm)"),
+                    &format!("spikes (> {SPIKE_MM} mm, or removed)"),
                     d.spikes.len().to_string(),
                 ),
                 (
