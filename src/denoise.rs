@@ -107,9 +107,11 @@
 //! met, but every spike longer than 5 mm is gone. Held-out check, `--subjects 10 --seed 1`
 //! (50 scans): RMSE 0.171 → 0.151 mm, > 2 mm 111 → 7, max 32.6 → 6.7 mm, 332 vertices removed
 //! from the clean twins. The previous default (no removal, no step-edge test): RMSE 0.180 mm, 255
-//! vertices > 2 mm, max 36.1 mm. Speed: 38 ms per synthetic scan, cara1_frontal1 48 ms
-//! (was 41; the removal's fits are only made where the filter's own last fit was ≥ 1 mm
-//! off, at rims, and around moved vertices).
+//! vertices > 2 mm, max 36.1 mm. Speed: 38 ms per synthetic scan; whole `facesynth denoise`
+//! process (read, filter, write), CPU time, paired medians against the build before removal
+//! and the step-edge test: cara1_frontal1 55 ms (ratio 0.97), cara1_sonrisa 126 ms (1.14).
+//! The removal's fits are only made at rims, where the filter's own last fit was ≥ 1 mm off,
+//! and around moved vertices.
 //!
 //! The literal method is [`DenoiseParams::paper`] (`--paper`): global rule, no floor, the
 //! paper's median → Laplacian estimate.

@@ -100,12 +100,12 @@
 //! # Speed
 //!
 //! `facesynth bench-landmarks ../shared/data/gavabdb/cara1_frontal1.wrl --repeat 30`
-//! (13,709 vertices), pinned to one core (`taskset -c 0`), opt-level 2 (no release build), on
-//! a 2-core machine shared with other builds (load ≈ 7, so indicative only): denoise
-//! 16.7 ms min / 26.5 ms median, detection 34.9 / 55.3, together **59.3 ms min / 81.7 ms
-//! median** (goal < 150 ms). cara1_sonrisa (13,296 vertices): 40.3 / 79.2. Most of the
-//! detection is the 5-ring
-//! quadric fit at every vertex.
+//! (13,709 vertices), release build pinned to one core (`taskset -c 0`), other jobs running on
+//! the second core: denoise 38.0 ms min / 38.7 ms median, detection 35.5 / 36.3, together
+//! **73.7 / 75.5 ms** (goal < 150 ms). cara1_sonrisa (13,296 vertices; its denoising runs all
+//! 15 iterations): denoise 105 / 110 ms, together 140 / 146 ms (the build before the
+//! denoising removal: 127 / 140 ms). Most of the detection is the 5-ring quadric fit at every
+//! vertex; most of the denoising, the consensus fits of rough rings.
 
 pub mod eval;
 pub mod render;
