@@ -376,24 +376,41 @@ pub struct DenoiseReport {
 }
 
 impl DenoiseReport {
-    /// Marks `gone` (input ids) removed and recomputes the figures over the kept vertices;
-    /// `moved` flags, per input vertex, which vertices the filter moved.
-    fn set_removed(&mut self, gone: &[bool], moved: &[bool]) {
-        let n = self.displacement_mm.len();
-        self.removed = (0..n as u32).filter(|&v| gone[v as usize]).collect();
-        self.kept = (0..n as u32).filter(|&v| !gone[v as usize]).collect();
-        for &v in &self.removed {
-            self.displacement_mm[v as usize] = f64::NAN;
-        }
-        self.vertices_removed = self.removed.len();
-        self.vertices_moved = self.kept.iter().filter(|&&v| moved[v as usize]).count();
-        let kept = || self.kept.iter().map(|&v| self.displacement_mm[v as usize]);
-        self.max_displacement_mm = kept().fold(0.0, f64::max);
-        self.mean_displacement_mm = if self.kept.is_empty() {
+    /// The report of a filter run: `positions` (one per input vertex) are where it left the
+    /// vertices; figures are over the kept ones.
+    fn new(method: DenoiseMethod, filtered: &Filtered, positions: &[DVec3]) -> Self {
+        let Filtered {
+            input,
+            iterations_run,
+            moved,
+            removed: gone,
+        } = filtered;
+        let n = input.len() as u32;
+        let removed: Vec<u32> = (0..n).filter(|&v| gone[v as usize]).collect();
+        let kept: Vec<u32> = (0..n).filter(|&v| !gone[v as usize]).collect();
+        let displacement_mm: Vec<f64> = positions
+            .iter()
+            .zip(input)
+            .zip(gone)
+            .map(|((p, q), &g)| if g { f64::NAN } else { p.distance(*q) })
+            .collect();
+        let on_kept = || kept.iter().map(|&v| displacement_mm[v as usize]);
+        let mean_displacement_mm = if kept.is_empty() {
             0.0
         } else {
-            kept().sum::<f64>() / self.kept.len() as f64
+            on_kept().sum::<f64>() / kept.len() as f64
         };
+        DenoiseReport {
+            method,
+            iterations_run: *iterations_run,
+            vertices_moved: kept.iter().filter(|&&v| moved[v as usize]).count(),
+            vertices_removed: removed.len(),
+            max_displacement_mm: on_kept().fold(0.0, f64::max),
+            mean_displacement_mm,
+            displacement_mm,
+            removed,
+            kept,
+        }
     }
 
     /// Per output vertex: its displacement, mm (the heat map of the denoised mesh).
@@ -430,42 +447,19 @@ pub fn denoise_with_topology(
         )));
     }
     let nb = FilterNeighbours::new(mesh, topology, params.boundary);
-    let mut report = run(&mut mesh.positions_mm, &nb, topology, params, |_, _| {});
-    if !report.removed.is_empty() {
-        remove_vertices(mesh, &mut report);
+    let mut filtered = filter(&mut mesh.positions_mm, &nb, topology, params, |_, _| {});
+    if !filtered.removed.iter().any(|&r| r) {
+        return Ok(DenoiseReport::new(
+            params.method,
+            &filtered,
+            &mesh.positions_mm,
+        ));
     }
+    removal::add_orphans(&mesh.faces, &mut filtered.removed);
+    let report = DenoiseReport::new(params.method, &filtered, &mesh.positions_mm);
+    let keep: Vec<bool> = filtered.removed.iter().map(|r| !r).collect();
+    mesh.retain_vertices(&keep);
     Ok(report)
-}
-
-/// Takes `report.removed` out of `mesh`, and with them every vertex left without a face
-/// (a rim tip whose only face lost a corner); updates the report to match.
-fn remove_vertices(mesh: &mut Mesh, report: &mut DenoiseReport) {
-    let n = mesh.vertex_count();
-    let mut gone = vec![false; n];
-    for &v in &report.removed {
-        gone[v as usize] = true;
-    }
-    let referenced = |m: &Mesh| {
-        let mut used = vec![false; m.vertex_count()];
-        for &v in &m.faces.indices {
-            used[v as usize] = true;
-        }
-        used
-    };
-    let used_before = referenced(mesh);
-    let mut trial = mesh.clone();
-    let kept = trial.retain_vertices(&gone.iter().map(|g| !g).collect::<Vec<_>>());
-    for (new, used) in referenced(&trial).into_iter().enumerate() {
-        let old = kept[new] as usize;
-        gone[old] |= used_before[old] && !used;
-    }
-    let moved: Vec<bool> = report
-        .displacement_mm
-        .iter()
-        .map(|&d| d > STILL_MM)
-        .collect();
-    report.kept = mesh.retain_vertices(&gone.iter().map(|g| !g).collect::<Vec<_>>());
-    report.set_removed(&gone, &moved);
 }
 
 /// The neighbours each vertex is filtered with (CSR): the 1-ring for interior vertices, the
@@ -547,14 +541,36 @@ fn edge_face_count(mesh: &Mesh, topology: &Topology, a: usize, b: usize) -> usiz
 pub(crate) const STILL_MM: f64 = 1e-9;
 
 /// Runs the filter on `positions`; `observe(iteration, positions)` is called after every
-/// iteration (1-based), so a sweep over k costs one run (used by [`eval`]).
+/// iteration (1-based), so a sweep over k costs one run (used by [`eval`]). Vertices to be
+/// removed are only reported (`removed`, NaN displacement), not taken out: [`denoise`] does
+/// that with the mesh.
 pub fn run(
     positions: &mut [DVec3],
     nb: &FilterNeighbours,
     topology: &Topology,
     params: &DenoiseParams,
-    mut observe: impl FnMut(usize, &[DVec3]),
+    observe: impl FnMut(usize, &[DVec3]),
 ) -> DenoiseReport {
+    let filtered = filter(positions, nb, topology, params, observe);
+    DenoiseReport::new(params.method, &filtered, positions)
+}
+
+/// What the filter did, before [`DenoiseReport::new`] sums it up (one entry per input vertex).
+struct Filtered {
+    input: Vec<DVec3>,
+    iterations_run: usize,
+    moved: Vec<bool>,
+    /// Vertices to take out of the mesh (none unless removal is on).
+    removed: Vec<bool>,
+}
+
+fn filter(
+    positions: &mut [DVec3],
+    nb: &FilterNeighbours,
+    topology: &Topology,
+    params: &DenoiseParams,
+    mut observe: impl FnMut(usize, &[DVec3]),
+) -> Filtered {
     let n = positions.len();
     assert_eq!(
         nb.vertex_count(),
@@ -563,18 +579,18 @@ pub fn run(
     );
     let input = positions.to_vec();
     let mut moved = vec![false; n];
-    let mut removed = Vec::new();
+    let mut removed = vec![false; n];
     let mut iterations_run = 0;
     match params.method {
         DenoiseMethod::MedianLaplacian => {
-            let mut work = MedianLaplacianWork::new(topology, params.estimator, &input);
+            let mut work = MedianLaplacianWork::new(n, topology, params.estimator);
             // Iterations of the current phase; the quadric estimator does the rims once the
             // interior has settled or used its k, and the rim phase gets k of its own (else a
             // slowly converging interior would leave every rim spike untouched).
             let (mut it, mut phase_it) = (0, 0);
             loop {
                 let count = if phase_it < params.iterations {
-                    work.iterate(positions, nb, topology, params, &mut moved)
+                    work.iterate(positions, &input, nb, topology, params, &mut moved)
                 } else {
                     0
                 };
@@ -619,27 +635,12 @@ pub fn run(
             }
         }
     }
-    let displacement_mm: Vec<f64> = positions
-        .iter()
-        .zip(&input)
-        .map(|(p, q)| p.distance(*q))
-        .collect();
-    let mut report = DenoiseReport {
-        method: params.method,
+    Filtered {
+        input,
         iterations_run,
-        vertices_moved: 0,
-        vertices_removed: 0,
-        max_displacement_mm: 0.0,
-        mean_displacement_mm: 0.0,
-        displacement_mm,
-        removed: Vec::new(),
-        kept: Vec::new(),
-    };
-    if removed.is_empty() {
-        removed = vec![false; n];
+        moved,
+        removed,
     }
-    report.set_removed(&removed, &moved);
-    report
 }
 
 /// The quadric estimator's last pass: every interior vertex the filter moved is refitted
@@ -706,9 +707,6 @@ struct MedianLaplacianWork {
     /// wait), `true` once it has settled and the rim vertices are filtered.
     rim_phase: bool,
     fit: QuadricFit,
-    /// [`Estimator::RobustQuadric`]: the positions before filtering (the step-edge test of
-    /// [`on_real_surface`] looks at the vertex as it came).
-    input: Vec<DVec3>,
 }
 
 /// The 2-ring of every vertex (the vertex itself excluded), CSR.
@@ -739,8 +737,7 @@ impl Rings {
 }
 
 impl MedianLaplacianWork {
-    fn new(topology: &Topology, estimator: Estimator, input: &[DVec3]) -> Self {
-        let n = input.len();
+    fn new(n: usize, topology: &Topology, estimator: Estimator) -> Self {
         MedianLaplacianWork {
             median: vec![DVec3::ZERO; n],
             candidate: vec![DVec3::ZERO; n],
@@ -757,11 +754,6 @@ impl MedianLaplacianWork {
             dirty: vec![true; n],
             rim_phase: false,
             fit: QuadricFit::default(),
-            input: if estimator == Estimator::RobustQuadric {
-                input.to_vec()
-            } else {
-                Vec::new()
-            },
         }
     }
 
@@ -814,6 +806,7 @@ impl MedianLaplacianWork {
     fn estimate_quadric(
         &mut self,
         positions: &[DVec3],
+        input: &[DVec3],
         topology: &Topology,
         params: &DenoiseParams,
         floor: f64,
@@ -887,7 +880,7 @@ impl MedianLaplacianWork {
                     } else {
                         let f =
                             eligibility_floor(params, floor, sigma, rough, topology.is_boundary[v]);
-                        veto_real_surface(f, self.disp[v], &self.input, v, rings3.of(v), topology)
+                        veto_real_surface(f, self.disp[v], input, v, rings3.of(v), topology)
                     };
                 }
                 None => {
@@ -897,7 +890,7 @@ impl MedianLaplacianWork {
                 }
             }
         }
-        self.estimate_clusters(positions, topology, params, floor, moved);
+        self.estimate_clusters(positions, input, topology, params, floor, moved);
     }
 
     /// Spike clusters: a vertex whose change clears the displacement floor but not its ring's
@@ -907,6 +900,7 @@ impl MedianLaplacianWork {
     fn estimate_clusters(
         &mut self,
         positions: &[DVec3],
+        input: &[DVec3],
         topology: &Topology,
         params: &DenoiseParams,
         floor: f64,
@@ -939,8 +933,7 @@ impl MedianLaplacianWork {
             self.candidate[v] = DVec3::new(p.x, p.y, z);
             self.disp[v] = (z - p.z).abs();
             let f = eligibility_floor(params, floor, sigma, rough, topology.is_boundary[v]);
-            self.floor[v] =
-                veto_real_surface(f, self.disp[v], &self.input, v, rings3.of(v), topology);
+            self.floor[v] = veto_real_surface(f, self.disp[v], input, v, rings3.of(v), topology);
         }
     }
 
@@ -948,6 +941,7 @@ impl MedianLaplacianWork {
     fn iterate(
         &mut self,
         positions: &mut [DVec3],
+        input: &[DVec3],
         nb: &FilterNeighbours,
         topology: &Topology,
         params: &DenoiseParams,
@@ -957,7 +951,7 @@ impl MedianLaplacianWork {
         match params.estimator {
             Estimator::MedianLaplacian => self.estimate_median_laplacian(positions, nb, floor),
             Estimator::RobustQuadric => {
-                self.estimate_quadric(positions, topology, params, floor, moved)
+                self.estimate_quadric(positions, input, topology, params, floor, moved)
             }
         }
         // 4. Threshold; 5. move.

@@ -618,12 +618,18 @@ impl Detector<'_> {
         let mask: Vec<bool> = (0..self.mesh.vertex_count())
             .map(|v| self.desc.dz(v) >= FACE_MIN_DZ && self.desc.normal[v].z > 0.0)
             .collect();
-        let face = self.biggest(&mask).ok_or_else(|| {
-            Error::algorithm(
-                "landmarks: facial segmentation",
-                "no vertex faces the scanner (+z); is the scan in its scanner frame?",
-            )
-        })?;
+        // The regions once: the largest is the face, some others may join it below.
+        let regions = self.regions(&mask);
+        let (biggest, face) = regions
+            .iter()
+            .enumerate()
+            .max_by_key(|(_, r)| r.len())
+            .ok_or_else(|| {
+                Error::algorithm(
+                    "landmarks: facial segmentation",
+                    "no vertex faces the scanner (+z); is the scan in its scanner frame?",
+                )
+            })?;
         if face.len() < 200 {
             return Err(Error::algorithm(
                 "landmarks: facial segmentation",
@@ -634,7 +640,7 @@ impl Detector<'_> {
             ));
         }
         let mut out = vec![false; mask.len()];
-        for &v in &face {
+        for &v in face {
             out[v as usize] = true;
         }
         // Front-facing islands the face surrounds belong to it: a hole on the nose bridge
@@ -645,8 +651,8 @@ impl Detector<'_> {
             .iter()
             .map(|&v| self.p(v as usize).truncate())
             .collect();
-        for region in self.regions(&mask) {
-            if region.len() < ENCLOSED_ISLAND_MIN_VERTICES || out[region[0] as usize] {
+        for (k, region) in regions.iter().enumerate() {
+            if k == biggest || region.len() < ENCLOSED_ISLAND_MIN_VERTICES {
                 continue;
             }
             let c = region
@@ -661,7 +667,7 @@ impl Detector<'_> {
                 && side(&|d| d.y < 0.0 && d.x.abs() < band)
                 && side(&|d| d.y > 0.0 && d.x.abs() < band);
             if enclosed {
-                for v in region {
+                for &v in region {
                     out[v as usize] = true;
                 }
             }

@@ -16,6 +16,16 @@ fn denoised(path: &std::path::Path) -> Mesh {
     m
 }
 
+/// A scan of the small generated set (4 subjects, seed 3), denoised, with its ground truth and
+/// its true nose tip.
+fn generated_scan(stem: &str) -> (Mesh, ScanTruth, DVec3) {
+    let dir = common::synth_dataset(4, 3, false);
+    let mesh = denoised(&dir.join(format!("{stem}.wrl")));
+    let truth = ScanTruth::load(&dir.join(format!("{stem}.json"))).unwrap();
+    let tip = DVec3::from_array(truth.feature_point(FeaturePoint::NoseTip).unwrap().xyz_mm);
+    (mesh, truth, tip)
+}
+
 #[test]
 fn generated_scans_meet_the_measured_accuracy() {
     let dir = common::synth_dataset(4, 3, false);
@@ -73,11 +83,7 @@ fn generated_scans_meet_the_measured_accuracy() {
 /// for ±10° roll, yaw and pitch (measured: worst 6.7 mm, the chin).
 #[test]
 fn detection_follows_ten_degree_rotations() {
-    let dir = common::synth_dataset(4, 3, false);
-    let stem = "subj001_frontal1";
-    let base = denoised(&dir.join(format!("{stem}.wrl")));
-    let truth = ScanTruth::load(&dir.join(format!("{stem}.json"))).unwrap();
-    let tip = DVec3::from_array(truth.feature_point(FeaturePoint::NoseTip).unwrap().xyz_mm);
+    let (base, truth, tip) = generated_scan("subj001_frontal1");
     let pivot = tip - DVec3::new(0.0, 0.0, 90.0); // about the head, as the poses are
     let a = 10f64.to_radians();
     for (what, r) in [
@@ -114,11 +120,7 @@ fn detection_follows_ten_degree_rotations() {
 /// 3 mm moat around the nose leaves it an island the face surrounds.
 #[test]
 fn a_nose_cut_off_by_a_moat_is_still_the_nose() {
-    let dir = common::synth_dataset(4, 3, false);
-    let stem = "subj002_frontal1";
-    let base = denoised(&dir.join(format!("{stem}.wrl")));
-    let truth = ScanTruth::load(&dir.join(format!("{stem}.json"))).unwrap();
-    let tip = DVec3::from_array(truth.feature_point(FeaturePoint::NoseTip).unwrap().xyz_mm);
+    let (base, _, tip) = generated_scan("subj002_frontal1");
     let mut moated = base.clone();
     let keep: Vec<bool> = moated
         .positions_mm

@@ -37,7 +37,7 @@
 //! instead of 11), so it is not done.
 
 use super::{DenoiseParams, QuadricFit, Rings, on_real_surface};
-use crate::mesh::Topology;
+use crate::mesh::{Polygons, Topology};
 use glam::DVec3;
 
 /// An edge with a larger depth jump (mm) does not join two samples of one surface.
@@ -82,6 +82,9 @@ pub(super) fn unrepairable(
         }
     }
     let (mut scratch, mut wide) = (vec![false; n], Vec::new());
+    // The step-edge test, asked only of interior vertices that would otherwise go (it tries
+    // 276 planes); positions do not change while peeling, so each answer is kept.
+    let mut real_surface: Vec<Option<bool>> = vec![None; n];
     for _ in 0..PEEL_ROUNDS {
         for v in 0..n {
             if removed[v] || !dirty[v] {
@@ -105,10 +108,12 @@ pub(super) fn unrepairable(
             .filter(|&v| {
                 !removed[v]
                     && residual[v].abs() > params.removal_residual_mm
-                    && (topology.is_boundary[v] || !on_real_surface(positions, v, rings3.of(v)))
                     && topology.neighbours(v).iter().all(|&u| {
                         removed[u as usize] || residual[u as usize].abs() <= residual[v].abs()
                     })
+                    && (topology.is_boundary[v]
+                        || !*real_surface[v]
+                            .get_or_insert_with(|| on_real_surface(positions, v, rings3.of(v))))
             })
             .collect();
         if worst.is_empty() {
@@ -122,6 +127,25 @@ pub(super) fn unrepairable(
         }
     }
     removed
+}
+
+/// Adds to `removed` every vertex that would be left without a face: a polygon keeps its
+/// corners that are not removed and goes when fewer than 3 are left (as
+/// [`crate::mesh::Mesh::retain_vertices`] does), so a rim tip whose only face lost a corner
+/// goes too.
+pub(super) fn add_orphans(faces: &Polygons, removed: &mut [bool]) {
+    let mut used_before = vec![false; removed.len()];
+    let mut used_after = vec![false; removed.len()];
+    for f in faces.iter() {
+        let survives = f.iter().filter(|&&v| !removed[v as usize]).count() >= 3;
+        for &v in f {
+            used_before[v as usize] = true;
+            used_after[v as usize] |= survives;
+        }
+    }
+    for (v, r) in removed.iter_mut().enumerate() {
+        *r |= used_before[v] && !used_after[v];
+    }
 }
 
 /// Test 1 of the module docs: the vertices of small pieces cut off by depth jumps.

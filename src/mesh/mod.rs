@@ -244,19 +244,11 @@ impl Mesh {
         for &v in &self.faces.indices {
             used[v as usize] = true;
         }
-        let mut remap = vec![u32::MAX; self.positions_mm.len()];
-        let mut positions = Vec::with_capacity(self.positions_mm.len());
-        for (i, p) in self.positions_mm.iter().enumerate() {
-            if used[i] {
-                remap[i] = positions.len() as u32;
-                positions.push(*p);
-            }
+        let kept = self.retain_vertices(&used);
+        let mut remap = vec![u32::MAX; used.len()];
+        for (new, &old) in kept.iter().enumerate() {
+            remap[old as usize] = new as u32;
         }
-        for v in &mut self.faces.indices {
-            *v = remap[*v as usize];
-        }
-        self.positions_mm = positions;
-        self.update_normals();
         remap
     }
 
