@@ -137,6 +137,42 @@ fn a_nose_cut_off_by_a_moat_is_still_the_nose() {
 }
 
 #[test]
+fn real_scans_whose_biggest_eye_region_is_a_crease_keep_a_level_face() {
+    use FeaturePoint::*;
+    // On these two real scans one side's biggest concave region beside the nose bridge is a
+    // lid crease, which tilted the eye line by 20° or more (the roll limit) and took the mouth
+    // and nose corners with it. The nose ridge puts the face frame back within a few degrees.
+    for name in [
+        "pointclouds/cara9_frontal2.txt",
+        "pointclouds/cara46_frontal1_filtered_raw.txt",
+    ] {
+        let r =
+            landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
+        let ridge = r.ridge_roll_deg.expect("nose ridge found");
+        assert!(
+            r.warnings.iter().any(|w| w.contains("nose ridge")),
+            "{name}: the crease was not questioned: {:?}",
+            r.warnings
+        );
+        assert!(
+            (r.roll_deg - ridge).abs() < 8.0 && r.roll_deg.abs() < 10.0,
+            "{name}: roll {:.1}°, ridge {ridge:.1}°",
+            r.roll_deg
+        );
+        let g = |p| r.landmarks.get(p);
+        for (a, b) in [
+            (MouthCornerLeft, MouthCornerRight),
+            (NoseCornerLeft, NoseCornerRight),
+        ] {
+            let dy = (g(a).y - g(b).y).abs();
+            assert!(dy < 8.0, "{name}: {a} and {b} {dy:.1} mm apart in height");
+        }
+        assert!(g(MouthCornerLeft).y < g(NoseCornerLeft).y);
+        assert!(g(MouthCornerRight).y < g(NoseCornerRight).y);
+    }
+}
+
+#[test]
 fn real_gavabdb_frontal_scan_gives_an_anatomically_ordered_face() {
     use FeaturePoint::*;
     let m = denoised(&common::gavab("cara1_frontal1.wrl"));
