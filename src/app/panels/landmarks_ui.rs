@@ -62,12 +62,12 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         );
     }
     if let Some(d) = &app.doc.detection {
-        let ridge = d
+        let symmetry = d
             .report
-            .ridge_roll_deg
+            .symmetry_roll_deg
             .map_or("not found".to_string(), |r| format!("{r:.1}°"));
         ui.small(format!(
-            "detected in {:.0} ms; face region {} vertices, roll {:.1}° (nose ridge {ridge})",
+            "detected in {:.0} ms; face region {} vertices, roll {:.1}° (symmetry {symmetry})",
             d.millis, d.report.face_vertices, d.report.roll_deg
         ));
         for w in &d.report.warnings {
