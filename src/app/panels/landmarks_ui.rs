@@ -98,7 +98,8 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     // Outside its Table 2 range: flagged for a look.
                     ui.colored_label(
                         egui::Color32::from_rgb(255, 150, 40),
-                        format!("⚠ {}", p.name()),
+                        // "!" rather than ⚠, which the default fonts lack (drawn as a box).
+                        format!("! {}", p.name()),
                     )
                     .on_hover_text(flags.join("\n"));
                 }
