@@ -101,9 +101,10 @@
 //! flank; counted right before, from a smaller picture; its eye line tilts 14° against a
 //! symmetry line of 2.5°, but no other concave region agrees better) and cara8_abajo (left
 //! outer corner ~5 mm past the end of the eye, at the temple's edge; its right outer corner
-//! moved from the cheek to the end of the eye with the symmetry frame). cara9_frontal2 was wrong until the symmetry check: a lid crease was the
-//! biggest concave region beside its nose, the eye line tilted 20°, and the left outer eye
-//! corner went onto the brow and the left mouth corner onto the nasolabial fold. A closer
+//! moved from the cheek to the end of the eye with the symmetry frame). cara9_frontal2 was
+//! wrong until the symmetry check: a lid crease was the biggest concave region beside its
+//! nose, the eye line tilted 20°, and the left outer eye corner went onto the brow and the
+//! left mouth corner onto the nasolabial fold. A closer
 //! look at the eye regions alone (shaded relief, 7 px/mm) is stricter than the overviews:
 //! cara32_frontal1's left inner corner and cara53_frontal1/2's right eye corners sit 5–8 mm
 //! below the fissure, which the overviews hide. The Table 2 warnings flag some correct points:
