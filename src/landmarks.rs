@@ -720,22 +720,8 @@ impl Detector<'_> {
         }
         let nx = ((hi.x - lo.x) / CELL) as usize + 1;
         let ny = ((hi.y - lo.y) / CELL) as usize + 1;
-        let mut sum = vec![0.0; nx * ny];
-        let mut cnt = vec![0u32; nx * ny];
-        for &v in &pts {
-            let q = (self.p(v).truncate() - lo) / CELL;
-            let k = q.y as usize * nx + q.x as usize;
-            sum[k] += self.p(v).z;
-            cnt[k] += 1;
-        }
-        let height = |q: DVec2| -> Option<f64> {
-            let c = (q - lo) / CELL;
-            if c.x < 0.0 || c.y < 0.0 || c.x >= nx as f64 || c.y >= ny as f64 {
-                return None;
-            }
-            let k = c.y as usize * nx + c.x as usize;
-            (cnt[k] > 0).then(|| sum[k] / cnt[k] as f64)
-        };
+        let grid = DepthGrid::new(lo, CELL, nx, ny, pts.iter().map(|&v| self.p(v)));
+        let height = |q: DVec2| grid.at(q);
         const DIRS: usize = 16;
         let r = self.params.nose_probe_radius_mm;
         let circle: Vec<DVec2> = (0..DIRS)
@@ -918,42 +904,17 @@ impl Detector<'_> {
         const HALF_W: f64 = 50.0;
         const DOWN: f64 = 60.0;
         const UP: f64 = 50.0;
-        let nx = (2.0 * HALF_W / CELL) as usize;
-        let ny = ((DOWN + UP) / CELL) as usize;
-        let mut sum = vec![0.0; nx * ny];
-        let mut cnt = vec![0u32; nx * ny];
-        let cell = |d: DVec2| -> Option<usize> {
-            let i = ((d.x + HALF_W) / CELL).floor();
-            let j = ((d.y + DOWN) / CELL).floor();
-            (i >= 0.0 && j >= 0.0 && (i as usize) < nx && (j as usize) < ny)
-                .then(|| j as usize * nx + i as usize)
-        };
-        for (v, _) in face.iter().enumerate().filter(|(_, f)| **f) {
-            let d = self.p(v) - tip;
-            if let Some(k) = cell(d.truncate()) {
-                sum[k] += d.z;
-                cnt[k] += 1;
-            }
-        }
-        let depth: Vec<f64> = (0..nx * ny)
-            .map(|k| {
-                if cnt[k] > 0 {
-                    sum[k] / cnt[k] as f64
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
-        let filled: Vec<(DVec2, f64)> = (0..nx * ny)
-            .filter(|&k| cnt[k] > 0)
-            .map(|k| {
-                let c = DVec2::new(
-                    (k % nx) as f64 * CELL - HALF_W + 0.5 * CELL,
-                    (k / nx) as f64 * CELL - DOWN + 0.5 * CELL,
-                );
-                (c, depth[k])
-            })
-            .collect();
+        let grid = DepthGrid::new(
+            DVec2::new(-HALF_W, -DOWN),
+            CELL,
+            (2.0 * HALF_W / CELL) as usize,
+            ((DOWN + UP) / CELL) as usize,
+            face.iter()
+                .enumerate()
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| self.p(v) - tip),
+        );
+        let filled: Vec<(DVec2, f64)> = grid.filled().collect();
         let score = |roll_deg: f64, offset_mm: f64, stride: usize| -> Option<f64> {
             let roll = roll_deg.to_radians();
             let u = DVec2::new(roll.cos(), roll.sin());
@@ -963,7 +924,7 @@ impl Detector<'_> {
             for &(c, z) in filled.iter().step_by(stride) {
                 let side = c.dot(u) - offset_mm;
                 let m = c - 2.0 * side * u;
-                if let Some(zm) = cell(m).map(|k| depth[k]).filter(|z| !z.is_nan()) {
+                if let Some(zm) = grid.at(m) {
                     let d = (z - zm).clamp(-10.0, 10.0);
                     dd += d * d;
                     ds += d * side;
@@ -1277,6 +1238,73 @@ impl Detector<'_> {
                 da.total_cmp(&db)
             })
             .unwrap_or(0)
+    }
+}
+
+/// Mean depth (z) of points on a square xy grid; the nose-tip probe and the symmetry search
+/// read the face through it.
+struct DepthGrid {
+    lo: DVec2,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Per cell, NaN where no point fell.
+    mean: Vec<f64>,
+}
+
+impl DepthGrid {
+    /// `nx` × `ny` cells of `cell` mm from the corner `lo`; points outside are left out.
+    fn new(
+        lo: DVec2,
+        cell: f64,
+        nx: usize,
+        ny: usize,
+        points: impl Iterator<Item = DVec3>,
+    ) -> Self {
+        let mut grid = DepthGrid {
+            lo,
+            cell,
+            nx,
+            ny,
+            mean: vec![0.0; nx * ny],
+        };
+        let mut count = vec![0u32; nx * ny];
+        for p in points {
+            if let Some(k) = grid.index(p.truncate()) {
+                grid.mean[k] += p.z;
+                count[k] += 1;
+            }
+        }
+        for (m, &c) in grid.mean.iter_mut().zip(&count) {
+            *m = if c > 0 { *m / c as f64 } else { f64::NAN };
+        }
+        grid
+    }
+
+    fn index(&self, q: DVec2) -> Option<usize> {
+        let i = ((q.x - self.lo.x) / self.cell).floor();
+        let j = ((q.y - self.lo.y) / self.cell).floor();
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
+            .then(|| j as usize * self.nx + i as usize)
+    }
+
+    /// The mean depth of the cell holding `q`, if any point fell there.
+    fn at(&self, q: DVec2) -> Option<f64> {
+        self.index(q).map(|k| self.mean[k]).filter(|z| !z.is_nan())
+    }
+
+    /// Cell centres and mean depths of the cells that hold points.
+    fn filled(&self) -> impl Iterator<Item = (DVec2, f64)> + '_ {
+        self.mean
+            .iter()
+            .enumerate()
+            .filter(|(_, z)| !z.is_nan())
+            .map(|(k, &z)| {
+                let c = DVec2::new((k % self.nx) as f64, (k / self.nx) as f64) * self.cell
+                    + self.lo
+                    + 0.5 * self.cell;
+                (c, z)
+            })
     }
 }
 
