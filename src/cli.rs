@@ -329,6 +329,14 @@ pub struct EvaluateArgs {
     /// Within-class scatter floor λ (× its mean eigenvalue); 0 = the paper's plain LDA.
     #[arg(long, default_value_t = 3.0)]
     pub sw_floor: f64,
+    /// Expression weights' scale, mm: with synthetic expressions, every range-image sample is
+    /// weighted 1/√(1 + σ²/s²), σ = how much the synthetic expressions move it (RMS), so the
+    /// regions expressions move count less (see `recognition::expression_weights`).
+    #[arg(long, value_name = "MM", default_value_t = 0.5)]
+    pub expression_weight_mm: f64,
+    /// Score every range-image sample alike, as the paper does (no expression weights).
+    #[arg(long)]
+    pub no_expression_weights: bool,
 }
 
 /// What `facesynth bench` measures.
@@ -837,8 +845,16 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
             ..Default::default()
         },
         expression_training: args.expression_training.clone(),
+        expression_weights: (!args.no_expression_weights).then_some(
+            crate::recognition::ExpressionWeightParams {
+                scale_mm: args.expression_weight_mm,
+            },
+        ),
         ..ProtocolParams::default()
     };
+    if let Some(w) = &params.expression_weights {
+        w.validate()?;
+    }
     if let (Some(dir), None) = (&args.expression_training, &args.augmented) {
         return Err(crate::Error::invalid(
             dir,

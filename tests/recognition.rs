@@ -111,6 +111,65 @@ fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
 }
 
 #[test]
+fn expression_weights_damp_where_the_synthetic_expressions_move_the_face() {
+    use facesynth::recognition::expression_weights::expression_weights;
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let aug = bulge_augmented(&dir);
+    let params = ProtocolParams::default();
+    let samples = protocol::collect_samples(&dir, Some(aug.path()), &params).unwrap();
+    let weights = params.expression_weights.unwrap();
+    let w = expression_weights(
+        &samples.gallery,
+        &samples.synthetic,
+        &params.range,
+        &weights,
+    )
+    .unwrap()
+    .expect("every synthetic sample has its gallery scan");
+    let at = |x: f64, y: f64| {
+        let r = &params.range;
+        let (i, j) = (0..r.cols)
+            .flat_map(|i| (0..r.rows).map(move |j| (i, j)))
+            .min_by(|&(a, b), &(c, d)| {
+                let e = |i, j| {
+                    let (sx, sy) = r.sample_xy_mm(i, j);
+                    (sx - x).powi(2) + (sy - y).powi(2)
+                };
+                e(a, b).total_cmp(&e(c, d))
+            })
+            .unwrap();
+        w[j * r.cols + i]
+    };
+    // The bulge: 3 mm at 40 mm below the nose tip, σ² ≈ 9 mm², so w ≈ 1/√(1 + 36) ≈ 0.16
+    // (the pose refinement moves the images by a little; hence the margins).
+    assert!(at(0.0, -40.0) < 0.3, "bulge centre {}", at(0.0, -40.0));
+    // Nothing moved on the forehead or at the sides of the nose bridge.
+    for (x, y) in [(0.0, 45.0), (-20.0, 30.0), (20.0, 30.0)] {
+        assert!(at(x, y) > 0.9, "({x}, {y}): {}", at(x, y));
+    }
+    // The augmented run is weighted and says so; the run without synthetic samples is not.
+    let with = protocol::score(&samples, true, &params).unwrap().report;
+    assert_eq!(with.expression_weight_scale_mm, Some(0.5));
+    assert!(
+        with.method_note.contains("weighted"),
+        "{}",
+        with.method_note
+    );
+    assert!(with.expression_weight_min.unwrap() < 0.3);
+    let without = protocol::score(&samples, false, &params).unwrap().report;
+    assert_eq!(without.expression_weight_scale_mm, None);
+    assert!(!without.method_note.contains("weighted"));
+    // Off: the model sees the range images as they are.
+    let off = ProtocolParams {
+        expression_weights: None,
+        ..ProtocolParams::default()
+    };
+    let eval = protocol::score(&samples, true, &off).unwrap();
+    assert_eq!(eval.report.expression_weight_scale_mm, None);
+    assert_eq!(eval.gallery[0].features, samples.gallery[0].features);
+}
+
+#[test]
 fn missing_ground_truth_is_a_failure_not_a_crash() {
     let dir = common::synth_dataset(SUBJECTS, SEED, false);
     let copy = tempfile::tempdir().unwrap();
