@@ -230,6 +230,21 @@ fn evaluate_command_writes_the_report() {
     assert_eq!(v["metric"], "euclidean");
     assert_eq!(v["method"], "eigenfaces");
     assert_eq!(v["cmc"].as_array().unwrap().len(), SUBJECTS);
+    // Per probe: as many as matched, and their ranks give the CMC's rank-1.
+    let per = v["per_probe"].as_array().unwrap();
+    assert_eq!(per.len() as u64, v["probes"].as_u64().unwrap());
+    let first = per.iter().filter(|p| p["rank"] == 1).count() as f64 / per.len() as f64;
+    assert!((first - v["rank1"].as_f64().unwrap()).abs() < 1e-12);
+    for p in per {
+        let recognised = p["best_match"] == p["subject"];
+        assert_eq!(recognised, p["rank"] == 1, "{p}");
+        assert!(
+            p["file"]
+                .as_str()
+                .unwrap()
+                .contains(p["subject"].as_str().unwrap())
+        );
+    }
     let stdout: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
     assert_eq!(stdout, v);
 }

@@ -449,6 +449,19 @@ pub struct Failure {
     pub reason: String,
 }
 
+/// One probe's outcome.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProbeResult {
+    pub file: PathBuf,
+    pub subject: String,
+    /// Scan kind (`frontal2`, `risa`, …).
+    pub kind: String,
+    /// 1-based rank of the probe's own identity (1 = recognised).
+    pub rank: usize,
+    /// The identity nearest to it.
+    pub best_match: String,
+}
+
 /// The evaluation report (`facesynth evaluate --report`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -470,6 +483,8 @@ pub struct Report {
     pub cmc: Vec<f64>,
     pub by_probe_kind: BTreeMap<String, Rates>,
     pub failures: Vec<Failure>,
+    /// Every probe matched, in file order: which were missed and whom they were taken for.
+    pub per_probe: Vec<ProbeResult>,
     /// Gallery samples M (neutral + synthetic).
     pub gallery_samples: usize,
     pub synthetic_gallery_samples: usize,
@@ -1105,6 +1120,18 @@ fn rank_probes(
     seconds.insert("train".to_string(), t_train);
     seconds.insert("match".to_string(), t_match);
     seconds.insert("total".to_string(), t_images + t0.elapsed().as_secs_f64());
+    let per_probe = matched
+        .iter()
+        .zip(&ranks)
+        .zip(&best)
+        .map(|((p, &rank), b)| ProbeResult {
+            file: p.path.clone(),
+            subject: p.subject.clone(),
+            kind: p.kind.clone(),
+            rank,
+            best_match: b.clone(),
+        })
+        .collect();
     let report = Report {
         subjects: n,
         probes: matched.len(),
@@ -1119,6 +1146,7 @@ fn rank_probes(
         cmc: all.cmc,
         by_probe_kind,
         failures,
+        per_probe,
         gallery_samples: gallery.len(),
         synthetic_gallery_samples: synthetic,
         learned_deviations: learned,
