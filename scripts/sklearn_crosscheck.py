@@ -4,8 +4,9 @@
     facesynth evaluate --dataset DIR [--gallery-scans ...] --features /tmp/f.json
     python3 scripts/sklearn_crosscheck.py /tmp/f.json [--metric cosine|euclidean]
 
-The features JSON holds the gallery and probe range images (f32), their subjects, and
-facesynth's per-probe rank and best identity. This script builds the same model with
+The features JSON holds the gallery and probe range images (f32) as the model saw them
+(multiplied by the expression weights when the report's `expression_weight_scale_mm` is set),
+their subjects, and facesynth's per-probe rank and best identity. This script builds the same model with
 scikit-learn — PCA to M - c components then LinearDiscriminantAnalysis (paper eqs. 1-9), or
 PCA to M - 1 (Eigenfaces) when every class has one sample — ranks the gallery identities for
 each probe (distance to the identity = minimum over its gallery samples, ties pessimistic) and

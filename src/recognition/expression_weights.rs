@@ -117,12 +117,10 @@ pub fn apply(weights: &[f64], features: &mut [f64]) {
     }
 }
 
-/// `features` multiplied by `weights` when there are weights, else as they are.
-pub fn weighted(weights: Option<&[f64]>, features: &[f64]) -> Vec<f64> {
+/// `features` multiplied by `weights` sample by sample.
+pub fn weighted(weights: &[f64], features: &[f64]) -> Vec<f64> {
     let mut out = features.to_vec();
-    if let Some(w) = weights {
-        apply(w, &mut out);
-    }
+    apply(weights, &mut out);
     out
 }
 

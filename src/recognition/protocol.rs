@@ -198,6 +198,7 @@ use crate::{Error, Result, io};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -987,25 +988,16 @@ pub fn score_variants(
             apply_weights(w, &mut s.features);
         }
     }
-    let deviations: Vec<Vec<f64>> = match &weights {
-        Some(w) => samples
-            .deviations
-            .iter()
-            .map(|d| weighted(Some(w), d))
-            .collect(),
-        None => Vec::new(),
-    };
-    let deviations: &[Vec<f64>] = if weights.is_some() {
-        &deviations
-    } else {
-        &samples.deviations
+    let deviations: Cow<[Vec<f64>]> = match &weights {
+        Some(w) => Cow::Owned(samples.deviations.iter().map(|d| weighted(w, d)).collect()),
+        None => Cow::Borrowed(&samples.deviations),
     };
     let xs: Vec<&[f64]> = gallery.iter().map(|s| s.features.as_slice()).collect();
     let sets: Vec<&[Vec<f64>]> = with_learned
         .iter()
         .map(|&learned| -> &[Vec<f64>] {
             if with_synthetic && learned {
-                deviations
+                &deviations
             } else {
                 &[]
             }
@@ -1026,8 +1018,12 @@ pub fn score_variants(
                 samples,
                 &model,
                 learned,
-                (&gallery, &labels, &identities),
-                weights.as_deref(),
+                TrainedGallery {
+                    samples: &gallery,
+                    labels: &labels,
+                    identities: &identities,
+                    weights: weights.as_deref(),
+                },
                 failures.clone(),
                 (t0, t_train),
                 params,
@@ -1046,17 +1042,32 @@ fn in_mask<'a>(w: &'a [f64], range: &RangeImageParams) -> impl Iterator<Item = f
 
 /// Projects the gallery and the probes with `model` and ranks every probe (one variant of
 /// [`score_variants`]).
-#[allow(clippy::too_many_arguments)]
+/// The gallery a model was trained on.
+struct TrainedGallery<'a> {
+    /// Its samples, weighted when `weights` is set.
+    samples: &'a [Sample],
+    /// Identity index of every sample.
+    labels: &'a [usize],
+    identities: &'a [String],
+    /// The expression weights the samples were multiplied by (the probes get the same).
+    weights: Option<&'a [f64]>,
+}
+
 fn rank_probes(
     samples: &Samples,
     model: &FisherModel,
     learned: usize,
-    (gallery, labels, identities): (&[Sample], &[usize], &[String]),
-    weights: Option<&[f64]>,
+    trained: TrainedGallery,
     mut failures: Vec<Failure>,
     (t0, t_train): (Instant, f64),
     params: &ProtocolParams,
 ) -> Result<Evaluation> {
+    let TrainedGallery {
+        samples: gallery,
+        labels,
+        identities,
+        weights,
+    } = trained;
     let t_images = samples.seconds;
     let id_of = |s: &str| identities.binary_search_by(|x| x.as_str().cmp(s)).ok();
     let t2 = Instant::now();
