@@ -27,7 +27,7 @@
 //! and 86.1 → 91.8 %; see `protocol.rs` for the full table and the choice of `s`.
 
 use super::protocol::Sample;
-use super::range_image::RangeImageParams;
+use super::range_image::{RangeImageParams, neighbourhood_median};
 use crate::{Error, Result};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -126,21 +126,11 @@ pub fn weighted(weights: &[f64], features: &[f64]) -> Vec<f64> {
 
 /// Median of each value's 3 × 3 neighbourhood (fewer at the borders) on a `cols × rows` grid.
 fn median_3x3(values: &[f64], cols: usize, rows: usize) -> Vec<f64> {
-    let mut out = vec![0.0; values.len()];
     let mut window = Vec::with_capacity(9);
-    for j in 0..rows {
-        for i in 0..cols {
-            window.clear();
-            for b in j.saturating_sub(1)..(j + 2).min(rows) {
-                for a in i.saturating_sub(1)..(i + 2).min(cols) {
-                    window.push(values[b * cols + a]);
-                }
-            }
-            let mid = window.len() / 2;
-            out[j * cols + i] = *window.select_nth_unstable_by(mid, f64::total_cmp).1;
-        }
-    }
-    out
+    (0..rows)
+        .flat_map(|j| (0..cols).map(move |i| (i, j)))
+        .map(|ij| neighbourhood_median(values, (cols, rows), ij, 1, &mut window))
+        .collect()
 }
 
 #[cfg(test)]

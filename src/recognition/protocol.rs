@@ -992,6 +992,24 @@ pub fn score_variants(
         Some(w) => Cow::Owned(samples.deviations.iter().map(|d| weighted(w, d)).collect()),
         None => Cow::Borrowed(&samples.deviations),
     };
+    // The probes once for all variants, weighted like the gallery.
+    let probes: Cow<[Sample]> = match &weights {
+        Some(w) => Cow::Owned(
+            samples
+                .probes
+                .iter()
+                .map(|p| Sample {
+                    features: weighted(w, &p.features),
+                    ..p.clone()
+                })
+                .collect(),
+        ),
+        None => Cow::Borrowed(&samples.probes),
+    };
+    let weighting = weights
+        .as_deref()
+        .zip(params.expression_weights.as_ref())
+        .map(|(w, p)| WeightSummary::new(w, p, &params.range));
     let xs: Vec<&[f64]> = gallery.iter().map(|s| s.features.as_slice()).collect();
     let sets: Vec<&[Vec<f64>]> = with_learned
         .iter()
@@ -1018,11 +1036,12 @@ pub fn score_variants(
                 samples,
                 &model,
                 learned,
-                TrainedGallery {
-                    samples: &gallery,
+                Matching {
+                    gallery: &gallery,
                     labels: &labels,
                     identities: &identities,
-                    weights: weights.as_deref(),
+                    probes: &probes,
+                    weighting,
                 },
                 failures.clone(),
                 (t0, t_train),
@@ -1032,42 +1051,60 @@ pub fn score_variants(
         .collect()
 }
 
-/// The values of `w` (one per range-image sample) inside the elliptic mask.
-fn in_mask<'a>(w: &'a [f64], range: &RangeImageParams) -> impl Iterator<Item = f64> + 'a {
-    w.iter()
-        .zip(range.mask())
-        .filter(|(_, m)| *m)
-        .map(|(x, _)| *x)
+/// The expression weights a run used, as the report gives them.
+#[derive(Debug, Clone, Copy)]
+struct WeightSummary {
+    scale_mm: f64,
+    /// Smallest and mean weight inside the elliptic mask.
+    min: f64,
+    mean: f64,
+}
+
+impl WeightSummary {
+    fn new(w: &[f64], params: &ExpressionWeightParams, range: &RangeImageParams) -> Self {
+        let (mut min, mut sum, mut n) = (1.0f64, 0.0, 0usize);
+        for (x, _) in w.iter().zip(range.mask()).filter(|(_, m)| *m) {
+            min = min.min(*x);
+            sum += x;
+            n += 1;
+        }
+        WeightSummary {
+            scale_mm: params.scale_mm,
+            min,
+            mean: sum / n.max(1) as f64,
+        }
+    }
+}
+
+/// What one model is matched with: the gallery it was trained on and the probes, both weighted
+/// when `weighting` is set.
+struct Matching<'a> {
+    gallery: &'a [Sample],
+    /// Identity index of every gallery sample.
+    labels: &'a [usize],
+    identities: &'a [String],
+    probes: &'a [Sample],
+    weighting: Option<WeightSummary>,
 }
 
 /// Projects the gallery and the probes with `model` and ranks every probe (one variant of
 /// [`score_variants`]).
-/// The gallery a model was trained on.
-struct TrainedGallery<'a> {
-    /// Its samples, weighted when `weights` is set.
-    samples: &'a [Sample],
-    /// Identity index of every sample.
-    labels: &'a [usize],
-    identities: &'a [String],
-    /// The expression weights the samples were multiplied by (the probes get the same).
-    weights: Option<&'a [f64]>,
-}
-
 fn rank_probes(
     samples: &Samples,
     model: &FisherModel,
     learned: usize,
-    trained: TrainedGallery,
+    matching: Matching,
     mut failures: Vec<Failure>,
     (t0, t_train): (Instant, f64),
     params: &ProtocolParams,
 ) -> Result<Evaluation> {
-    let TrainedGallery {
-        samples: gallery,
+    let Matching {
+        gallery,
         labels,
         identities,
-        weights,
-    } = trained;
+        probes,
+        weighting,
+    } = matching;
     let t_images = samples.seconds;
     let id_of = |s: &str| identities.binary_search_by(|x| x.as_str().cmp(s)).ok();
     let t2 = Instant::now();
@@ -1080,10 +1117,7 @@ fn rank_probes(
     let mut best = Vec::new();
     let mut kinds = Vec::new();
     let mut matched = Vec::new();
-    for mut p in samples.probes.iter().cloned() {
-        if let Some(w) = weights {
-            apply_weights(w, &mut p.features);
-        }
+    for p in probes {
         let Some(truth) = id_of(&p.subject) else {
             failures.push(Failure {
                 file: p.path.clone(),
@@ -1109,13 +1143,10 @@ fn rank_probes(
             "Fisherfaces: PCA to M - c = {} dims, LDA to c - 1 = {}{}",
             model.pca_dims,
             model.dims(),
-            match (weights, &params.expression_weights) {
-                (Some(_), Some(w)) => format!(
-                    "; samples weighted by the synthetic expressions' spread (scale {} mm)",
-                    w.scale_mm
-                ),
-                _ => String::new(),
-            }
+            weighting.map_or(String::new(), |w| format!(
+                "; samples weighted by the synthetic expressions' spread (scale {} mm)",
+                w.scale_mm
+            ))
         ),
         Method::Eigenfaces => format!(
             "Eigenfaces (PCA to {} dims): one gallery sample per subject, so S_w = 0 and LDA is undefined",
@@ -1166,15 +1197,9 @@ fn rank_probes(
         } else {
             0
         },
-        expression_weight_scale_mm: weights
-            .and(params.expression_weights.as_ref())
-            .map(|w| w.scale_mm),
-        expression_weight_min: weights.map(|w| in_mask(w, &params.range).fold(1.0, f64::min)),
-        expression_weight_mean: weights.map(|w| {
-            let (sum, n) =
-                in_mask(w, &params.range).fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
-            sum / n.max(1) as f64
-        }),
+        expression_weight_scale_mm: weighting.map(|w| w.scale_mm),
+        expression_weight_min: weighting.map(|w| w.min),
+        expression_weight_mean: weighting.map(|w| w.mean),
         gallery_scans: params.gallery_scans.clone(),
         pca_dims: model.pca_dims,
         projected_dims: model.dims(),
@@ -1185,7 +1210,7 @@ fn rank_probes(
     Ok(Evaluation {
         report,
         gallery: gallery.to_vec(),
-        probes: matched,
+        probes: matched.into_iter().cloned().collect(),
         identities: identities.to_vec(),
         ranks,
         best,

@@ -180,18 +180,8 @@ pub fn range_image(
                 if z == f64::NEG_INFINITY {
                     continue;
                 }
-                window.clear();
-                for jj in j.saturating_sub(3)..(j + 4).min(rows) {
-                    for ii in i.saturating_sub(3)..(i + 4).min(cols) {
-                        let w = depth[jj * cols + ii];
-                        if w > f64::NEG_INFINITY {
-                            window.push(w);
-                        }
-                    }
-                }
-                let mid = window.len() / 2;
-                let (_, median, _) = window.select_nth_unstable_by(mid, f64::total_cmp);
-                if (z - *median).abs() > params.spike_reject_mm {
+                let median = neighbourhood_median(&depth, (cols, rows), (i, j), 3, &mut window);
+                if (z - median).abs() > params.spike_reject_mm {
                     keep[j * cols + i] = false;
                 }
             }
@@ -246,6 +236,29 @@ pub fn range_image(
 }
 
 /// Z-buffers triangle abc (grid coordinates u, v, depth z), keeping the largest z.
+/// Median of the filled samples (not `-∞`) of the `(2 half + 1)²` window around column `i`,
+/// row `j` of a row-major `cols × rows` grid (fewer at the borders); the window holds at least
+/// the centre, which must be filled. `window` is scratch space.
+pub(crate) fn neighbourhood_median(
+    grid: &[f64],
+    (cols, rows): (usize, usize),
+    (i, j): (usize, usize),
+    half: usize,
+    window: &mut Vec<f64>,
+) -> f64 {
+    window.clear();
+    for jj in j.saturating_sub(half)..(j + half + 1).min(rows) {
+        for ii in i.saturating_sub(half)..(i + half + 1).min(cols) {
+            let w = grid[jj * cols + ii];
+            if w > f64::NEG_INFINITY {
+                window.push(w);
+            }
+        }
+    }
+    let mid = window.len() / 2;
+    *window.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
 fn rasterize(a: DVec3, b: DVec3, c: DVec3, cols: usize, rows: usize, depth: &mut [f64]) {
     let area = (b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y);
     if !(area.abs() > 1e-12) {
