@@ -35,6 +35,29 @@
 //! outer eye corner 10.4 mm). On expressions what fails is mostly the mouth corners of
 //! puckered or sideways mouths (gesto) and of open-mouth laughs, and isolated gross errors
 //! (the max column) where a gesture moves a feature out of its Table 2 box.
+//!
+//! # Systematic offsets (`mean_offset_mm`)
+//!
+//! Each error is also kept as a vector in the detection's face frame (lateral away from the
+//! midline, up, towards the scanner), and each point's mean vector is reported: the part of
+//! the error that is the same on every scan, i.e. where the detector's point and the
+//! benchmark's differ by definition rather than by noise. Seeds 31–33, 180 neutral scans, mm:
+//!
+//! | point | mean error | mean offset (lateral, up, depth) |
+//! |---|---|---|
+//! | nose tip | 2.25 | (−0.05, −1.96, 0.24) |
+//! | inner eye left / right | 3.12 / 3.22 | (−0.87, 1.51, 0.37) / (−0.98, 1.62, 0.35) |
+//! | outer eye left / right | 3.01 / 3.17 | (−0.41, 0.41, 0.29) / (−0.36, 0.45, 0.16) |
+//! | nose corner left / right | 2.16 / 2.29 | (0.90, −0.54, −0.55) / (1.07, −0.50, −0.72) |
+//! | mouth corner left / right | 2.15 / 2.25 | (−0.10, −0.73, −0.39) / (0.21, −0.84, −0.49) |
+//! | chin | 3.07 | (−0.27, 1.21, 1.64) |
+//!
+//! The nose tip (the most protruding point) lies 2 mm below the benchmark's iBUG 30, and the
+//! inner-eye pit 1.5 mm above and 0.9 mm medial of its iBUG 39/42: most of those points' error.
+//! Subtracting the inner-eye offset gives 2.92 / 2.94 mm (held-out seed 34: 2.84 / 2.48), but
+//! on the real scans' zoomed eye pictures the pit already sits at the medial end of the lid
+//! fissure, or below it, and the moved point 1–2 mm below the fissure; so the offset is the
+//! benchmark's eye model, not a detector error real scans share, and it is not subtracted.
 
 use super::{LandmarkParams, detect};
 use crate::denoise;
@@ -58,6 +81,10 @@ pub struct ScanResult {
     pub scan: String,
     /// Point name → error in mm (visible ground-truth points only).
     pub errors_mm: BTreeMap<String, f64>,
+    /// Point name → the error as a vector in the detection's face frame, mm: (lateral, up,
+    /// towards the scanner), lateral counted away from the midline (towards the subject's
+    /// left for midline points). Its length is the point's `errors_mm`.
+    pub offsets_mm: BTreeMap<String, [f64; 3]>,
     /// The detected points (all 13), mm.
     pub detected: BTreeMap<String, [f64; 3]>,
     /// Every scored point within [`SUCCESS_RADIUS_MM`].
@@ -66,6 +93,9 @@ pub struct ScanResult {
     pub failure: Option<String>,
     /// Plausibility warnings of the detection.
     pub warnings: Vec<String>,
+    /// Roll of the detection's face frame, degrees (0 where detection failed); with the
+    /// detected nose tip it gives the frame in which errors split into lateral and vertical.
+    pub roll_deg: f64,
     /// Denoise + detection time, ms.
     pub millis: f64,
 }
@@ -86,6 +116,10 @@ pub struct PointStats {
     pub max_mm: f64,
     /// Fraction within [`SUCCESS_RADIUS_MM`].
     pub within_10mm: f64,
+    /// Mean of [`ScanResult::offsets_mm`]: the systematic part of the error (lateral away
+    /// from the midline, up, towards the scanner), mm. Where it is large the detector finds a
+    /// different point than the ground truth names, consistently.
+    pub mean_offset_mm: [f64; 3],
 }
 
 /// Statistics of a group of scans (neutral or expression).
@@ -128,18 +162,22 @@ impl EvalReport {
 
 fn summarize<'a>(scans: impl Iterator<Item = &'a ScanResult>) -> GroupSummary {
     let scans: Vec<&ScanResult> = scans.collect();
-    let mut per: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    let mut per: BTreeMap<String, (Vec<f64>, [f64; 3])> = BTreeMap::new();
     for s in &scans {
         if s.failure.is_some() {
             continue;
         }
         for (k, e) in &s.errors_mm {
-            per.entry(k.clone()).or_default().push(*e);
+            let (errors, offset_sum) = per.entry(k.clone()).or_default();
+            errors.push(*e);
+            for (sum, o) in offset_sum.iter_mut().zip(s.offsets_mm[k]) {
+                *sum += o;
+            }
         }
     }
     let points = per
         .into_iter()
-        .map(|(k, mut e)| {
+        .map(|(k, (mut e, offset_sum))| {
             e.sort_by(f64::total_cmp);
             let n = e.len();
             let p95 = e[((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1];
@@ -150,6 +188,7 @@ fn summarize<'a>(scans: impl Iterator<Item = &'a ScanResult>) -> GroupSummary {
                 max_mm: e[n - 1],
                 within_10mm: e.iter().filter(|&&x| x <= SUCCESS_RADIUS_MM).count() as f64
                     / n as f64,
+                mean_offset_mm: offset_sum.map(|o| o / n as f64),
             };
             (k, stats)
         })
@@ -188,23 +227,38 @@ pub fn evaluate_scan(
         stem,
         scan: truth.scan.clone(),
         errors_mm: BTreeMap::new(),
+        offsets_mm: BTreeMap::new(),
         detected: BTreeMap::new(),
         success: false,
         failure: None,
         warnings: Vec::new(),
+        roll_deg: 0.0,
         millis,
     };
     match found {
         Err(e) => out.failure = Some(e.to_string()),
         Ok(report) => {
+            let (sin, cos) = report.roll_deg.to_radians().sin_cos();
             for (p, xyz, t) in truth.feature_points() {
                 if t.visible {
-                    let e = (report.landmarks.get(p) - xyz).length();
-                    out.errors_mm.insert(p.name().to_string(), e);
+                    let d = report.landmarks.get(p) - xyz;
+                    let lateral = if p.name().ends_with("_right") {
+                        -1.0
+                    } else {
+                        1.0
+                    };
+                    let offset = [
+                        lateral * (d.x * cos + d.y * sin),
+                        -d.x * sin + d.y * cos,
+                        d.z,
+                    ];
+                    out.errors_mm.insert(p.name().to_string(), d.length());
+                    out.offsets_mm.insert(p.name().to_string(), offset);
                 }
             }
             out.success = out.errors_mm.values().all(|&e| e <= SUCCESS_RADIUS_MM);
             out.warnings = report.warnings;
+            out.roll_deg = report.roll_deg;
             out.detected = report.landmarks.to_map();
         }
     }
