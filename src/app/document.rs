@@ -69,9 +69,10 @@ pub struct DetectionState {
 }
 
 impl DetectionState {
-    /// The Table 2 checks that failed for a point (empty: plausible).
+    /// The Table 2 and level checks that failed for a point (empty: plausible).
     pub fn implausible(&self, p: FeaturePoint) -> Vec<String> {
-        self.report
+        let table2 = self
+            .report
             .distances
             .iter()
             .filter(|d| d.point == p && !d.in_range)
@@ -80,8 +81,22 @@ impl DetectionState {
                     "{}: {:.1} mm outside [{:.1}, {:.1}]",
                     d.name, d.measured_mm, d.stat.min_mm, d.stat.max_mm
                 )
-            })
-            .collect()
+            });
+        let level = self
+            .report
+            .level
+            .iter()
+            .filter(|l| (l.left == p || l.right == p) && !l.in_range)
+            .map(|l| {
+                format!(
+                    "{} {:.1} mm higher than {} across the symmetry line (limit {})",
+                    l.left,
+                    l.difference_mm,
+                    l.right,
+                    crate::landmarks::LEVEL_MAX_MM
+                )
+            });
+        table2.chain(level).collect()
     }
 }
 
