@@ -72,6 +72,19 @@ impl FeaturePoint {
         Self::ALL.into_iter().find(|p| p.name() == name)
     }
 
+    /// Which side of the face the point is on: +1 the subject's left (+x), −1 the right, 0 a
+    /// midline point.
+    pub fn side(self) -> f64 {
+        let name = self.name();
+        if name.ends_with("_left") {
+            1.0
+        } else if name.ends_with("_right") {
+            -1.0
+        } else {
+            0.0
+        }
+    }
+
     /// The same point on the other side of the face (midline points map to themselves).
     pub fn mirror(self) -> Self {
         use FeaturePoint::*;
@@ -165,6 +178,7 @@ mod tests {
             assert_eq!(p.mirror().mirror(), p);
             let lr = p.name().ends_with("_left") || p.name().ends_with("_right");
             assert_eq!(p.mirror() != p, lr, "{p}");
+            assert_eq!(p.mirror().side(), -p.side(), "{p}");
         }
     }
 

@@ -1186,13 +1186,19 @@ impl Detector<'_> {
     fn cheek(&mut self, frame: &Frame, outer: usize, side: f64) -> usize {
         let au = frame.uv(self.p(outer)).x.abs();
         let h = CHEEK_STRIP_HALF_MM;
-        let bx = side_box(side, (au - 5.0, au + 60.0), (-h, h));
-        let mask = self.box_mask(frame, bx, |v| self.desc.dz(v) <= CHEEK_MAX_DZ);
-        if let Some(r) = self.biggest(&mask) {
+        let strip = self.box_mask(
+            frame,
+            side_box(side, (au - 5.0, au + 60.0), (-h, h)),
+            |_| true,
+        );
+        let turned: Vec<bool> = (0..strip.len())
+            .map(|v| strip[v] && self.desc.dz(v) <= CHEEK_MAX_DZ)
+            .collect();
+        if let Some(r) = self.biggest(&turned) {
             return self.most(&r, |p| -frame.uv(p).x.abs());
         }
-        let strip: Vec<u32> = (0..self.mesh.vertex_count() as u32)
-            .filter(|&v| bx.contains(frame.uv(self.p(v as usize))))
+        let strip: Vec<u32> = (0..strip.len() as u32)
+            .filter(|&v| strip[v as usize])
             .collect();
         if strip.is_empty() {
             return self.fallback(

@@ -678,13 +678,10 @@ fn save_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<()> {
 
 /// Marker colour of a feature point: subject's left green, right red, midline yellow.
 pub fn feature_colour(p: FeaturePoint) -> [f32; 4] {
-    let name = p.name();
-    if name.ends_with("_left") {
-        [0.15, 0.85, 0.3, 1.0]
-    } else if name.ends_with("_right") {
-        [0.95, 0.25, 0.2, 1.0]
-    } else {
-        [1.0, 0.85, 0.1, 1.0]
+    match p.side() {
+        s if s > 0.0 => [0.15, 0.85, 0.3, 1.0],
+        s if s < 0.0 => [0.95, 0.25, 0.2, 1.0],
+        _ => [1.0, 0.85, 0.1, 1.0],
     }
 }
 

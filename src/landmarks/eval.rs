@@ -59,11 +59,12 @@
 //! fissure, or below it, and the moved point 1–2 mm below the fissure; so the offset is the
 //! benchmark's eye model, not a detector error real scans share, and it is not subtracted.
 
-use super::{LandmarkParams, detect};
+use super::{Frame, LandmarkParams, detect};
 use crate::denoise;
 use crate::feature_points::FeaturePoint;
 use crate::ground_truth::ScanTruth;
 use crate::{Error, Result, io};
+use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -238,20 +239,15 @@ pub fn evaluate_scan(
     match found {
         Err(e) => out.failure = Some(e.to_string()),
         Ok(report) => {
-            let (sin, cos) = report.roll_deg.to_radians().sin_cos();
+            // The detection's face frame, only its rotation: errors are differences.
+            let frame = Frame::new(DVec3::ZERO, report.roll_deg.to_radians());
             for (p, xyz, t) in truth.feature_points() {
                 if t.visible {
                     let d = report.landmarks.get(p) - xyz;
-                    let lateral = if p.name().ends_with("_right") {
-                        -1.0
-                    } else {
-                        1.0
-                    };
-                    let offset = [
-                        lateral * (d.x * cos + d.y * sin),
-                        -d.x * sin + d.y * cos,
-                        d.z,
-                    ];
+                    // Away from the midline; midline points towards the subject's left.
+                    let lateral = if p.side() < 0.0 { -1.0 } else { 1.0 };
+                    let uv = frame.uv(d);
+                    let offset = [lateral * uv.x, uv.y, d.z];
                     out.errors_mm.insert(p.name().to_string(), d.length());
                     out.offsets_mm.insert(p.name().to_string(), offset);
                 }

@@ -235,7 +235,6 @@ pub fn range_image(
     })
 }
 
-/// Z-buffers triangle abc (grid coordinates u, v, depth z), keeping the largest z.
 /// Median of the filled samples (not `-∞`) of the `(2 half + 1)²` window around column `i`,
 /// row `j` of a row-major `cols × rows` grid (fewer at the borders); the window holds at least
 /// the centre, which must be filled. `window` is scratch space.
@@ -259,6 +258,7 @@ pub(crate) fn neighbourhood_median(
     *window.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
+/// Z-buffers triangle abc (grid coordinates u, v, depth z), keeping the largest z.
 fn rasterize(a: DVec3, b: DVec3, c: DVec3, cols: usize, rows: usize, depth: &mut [f64]) {
     let area = (b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y);
     if !(area.abs() > 1e-12) {
