@@ -1304,28 +1304,65 @@ impl QuadricFit {
         if !(scale > 1e-9) {
             return None;
         }
-        let mut ata = nalgebra::SMatrix::<f64, K, K>::zeros();
-        let mut atb = nalgebra::SVector::<f64, K>::zeros();
+        // Upper triangle of AᵀWA and AᵀWz, then an in-place Cholesky: this runs ~10⁵ times
+        // per scan (L1 rounds, consensus trials), so it avoids generic matrix temporaries.
+        let mut ata = [[0.0f64; K]; K];
+        let mut atb = [0.0f64; K];
         for ((q, k), w) in self.pts.iter().zip(&self.keep).zip(&self.weight) {
             if !*k {
                 continue;
             }
             let (x, y) = (q.x / scale, q.y / scale);
             let all = [1.0, x, y, x * x, x * y, y * y];
-            let row = nalgebra::SVector::<f64, K>::from_fn(|i, _| all[i]);
-            ata += *w * row * row.transpose();
-            atb += *w * row * q.z;
+            for i in 0..K {
+                let wi = *w * all[i];
+                for j in i..K {
+                    ata[i][j] += wi * all[j];
+                }
+                atb[i] += wi * q.z;
+            }
         }
-        let chol = nalgebra::Cholesky::new(ata)?;
-        let l = chol.l();
+        // Cholesky A = LLᵀ, L stored in the lower triangle (row i, column j ≤ i).
+        let mut l = [[0.0f64; K]; K];
+        for j in 0..K {
+            let mut d = ata[j][j];
+            for m in 0..j {
+                d -= l[j][m] * l[j][m];
+            }
+            if !(d > 0.0) {
+                return None;
+            }
+            let d = d.sqrt();
+            l[j][j] = d;
+            for i in j + 1..K {
+                let mut s = ata[j][i];
+                for m in 0..j {
+                    s -= l[i][m] * l[j][m];
+                }
+                l[i][j] = s / d;
+            }
+        }
         let (dmin, dmax) = (0..K).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
-            (lo.min(l[(i, i)]), hi.max(l[(i, i)]))
+            (lo.min(l[i][i]), hi.max(l[i][i]))
         });
         // Diagonal of the factor ~ singular values' square roots: reject condition > ~1e8.
         if !(dmin > 1e-4 * dmax) {
             return None;
         }
-        let c = chol.solve(&atb);
+        // Forward (L u = b) then back (Lᵀ c = u) substitution.
+        let mut c = atb;
+        for i in 0..K {
+            for m in 0..i {
+                c[i] -= l[i][m] * c[m];
+            }
+            c[i] /= l[i][i];
+        }
+        for i in (0..K).rev() {
+            for m in i + 1..K {
+                c[i] -= l[m][i] * c[m];
+            }
+            c[i] /= l[i][i];
+        }
         let unscale = [
             1.0,
             1.0 / scale,

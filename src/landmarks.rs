@@ -134,8 +134,16 @@
 //! 15 iterations): denoise 107 / 108 ms, together 145 / 147 ms. Re-measured at stop 24 (level
 //! check and cheek strip added, machine otherwise idle): cara1_frontal1 77.3 / 80.7 ms
 //! (detection 39.2 / 40.9), cara1_sonrisa 148 / 155 ms (denoise 109 / 115, detection 38.4 /
-//! 40.3): the worst-case scan's median is now just over the goal, from denoising, which did
-//! not change; run-to-run spread on this machine is ~5 %. The symmetry line of step 3
+//! 40.3): the worst-case scan's median was just over the goal, from denoising. Stop 25 made
+//! the two hottest fits cheaper without changing any result (the denoiser's quadric normal
+//! equations and Cholesky on fixed-size arrays instead of nalgebra's generic ones; the
+//! curvature fit's conditioning test decided by the bounds tr(A)·tr(A⁻¹) instead of an
+//! eigensolver except on nearly degenerate rings; identical landmarks JSON on all 29 real
+//! scans, identical `eval-denoise` table on 100 synthetic scans): cara1_frontal1 **63.9 /
+//! 67.0 ms** (denoise 35.0 / 36.2, detection 28.7 / 30.0), cara1_sonrisa **126.6 / 130.2 ms**
+//! (denoise 98.0 / 101.3, detection 27.7 / 29.1); whole `facesynth landmarks` process on
+//! cara1_sonrisa (read included), `farm-bench -n 15 --pin 1`, median 148 ms against 171 ms
+//! before (paired ratio 0.87). The symmetry line of step 3
 //! costs ~2 ms (detection before it: 35.5 / 36.3 ms on cara1_frontal1; a search at every
 //! 0.5° cost 6 ms and pushed cara1_sonrisa to 152 ms, hence the coarse-then-fine search). Most
 //! of the detection is the 5-ring quadric fit at every
