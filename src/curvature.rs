@@ -226,20 +226,10 @@ fn fit_vertex(mesh: &Mesh, v: usize, n0: DVec3, ring: &[u32]) -> Option<Fit> {
         ata += row * row.transpose();
         atb += row * h;
     }
-    // Reject rank-deficient neighbourhoods (collinear rims) by the conditioning of AᵀA:
-    // λmin / λmax ≤ 1e-10. The bounds 1 / tr(A⁻¹) ≤ λmin and λmax ≤ tr(A) decide it without
-    // an eigensolver on all but nearly degenerate rings (the bound is loose by at most 25×).
+    // Reject rank-deficient neighbourhoods (collinear rims) by the conditioning of AᵀA.
     let chol = ata.cholesky()?;
-    let trace = ata.trace();
-    let inv_trace = chol.inverse().trace();
-    if !(inv_trace * trace < 1e10) {
-        let eig = ata.symmetric_eigenvalues();
-        let (lo, hi) = eig
-            .iter()
-            .fold((f64::MAX, 0.0f64), |(lo, hi), &e| (lo.min(e), hi.max(e)));
-        if !(lo > hi * 1e-10) {
-            return None;
-        }
+    if !well_conditioned(&ata, &chol) {
+        return None;
     }
     let x = chol.solve(&atb);
     // Back to mm: h = A a² … with a, b, h in units of `scale`.
@@ -268,9 +258,63 @@ fn fit_vertex(mesh: &Mesh, v: usize, n0: DVec3, ring: &[u32]) -> Option<Fit> {
     })
 }
 
+/// Whether λmin / λmax of the positive definite `ata` exceeds 1e-10. The bounds
+/// 1 / tr(A⁻¹) ≤ λmin and λmax ≤ tr(A) decide it without an eigensolver on all but nearly
+/// degenerate rings (the bound is loose by at most 25×, the dimension squared).
+fn well_conditioned(
+    ata: &SMatrix<f64, 5, 5>,
+    chol: &nalgebra::Cholesky<f64, nalgebra::U5>,
+) -> bool {
+    if chol.inverse().trace() * ata.trace() < 1e10 {
+        return true;
+    }
+    let eig = ata.symmetric_eigenvalues();
+    let (lo, hi) = eig
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(lo, hi), &e| (lo.min(e), hi.max(e)));
+    lo > hi * 1e-10
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The trace bounds give the eigenvalue test's answer, on matrices from well conditioned
+    /// to singular (condition numbers 1 to 1e16, both sides of the 1e10 limit).
+    #[test]
+    fn conditioning_test_agrees_with_the_eigenvalues() {
+        let mut rnd = crate::test_support::uniform(99);
+        let (mut fast, mut slow) = (0, 0);
+        for k in 0..=64 {
+            let cond = 10f64.powf(k as f64 / 4.0);
+            // A random rotation times a diagonal spread from 1 to 1 / cond.
+            let q = SMatrix::<f64, 5, 5>::from_fn(|_, _| rnd()).qr().q();
+            let d = SMatrix::<f64, 5, 5>::from_diagonal(&SVector::<f64, 5>::from_fn(|i, _| {
+                cond.powf(-(i as f64) / 4.0)
+            }));
+            let a = q * d * q.transpose();
+            let a = 0.5 * (a + a.transpose());
+            let Some(chol) = a.cholesky() else {
+                continue;
+            };
+            let eig = a.symmetric_eigenvalues();
+            let (lo, hi) = eig
+                .iter()
+                .fold((f64::MAX, 0.0f64), |(lo, hi), &e| (lo.min(e), hi.max(e)));
+            assert_eq!(
+                well_conditioned(&a, &chol),
+                lo > hi * 1e-10,
+                "condition {cond:e}"
+            );
+            if chol.inverse().trace() * a.trace() < 1e10 {
+                fast += 1;
+            } else {
+                slow += 1;
+            }
+        }
+        // Both paths were taken.
+        assert!(fast > 10 && slow > 5, "fast {fast}, slow {slow}");
+    }
 
     #[test]
     fn shape_index_of_textbook_curvature_pairs() {

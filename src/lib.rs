@@ -44,3 +44,19 @@ pub mod render;
 pub use error::{Error, FemError, Result};
 pub use feature_points::{FeaturePoint, Landmarks};
 pub use mesh::Mesh;
+
+/// Helpers shared by the unit tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    /// A seeded uniform generator on [-0.5, 0.5) (64-bit LCG): repeatable test data without
+    /// a random-number crate.
+    pub fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+}
