@@ -89,6 +89,9 @@
 //!    a closed lid or a lip edge, and is never moved: the ring's quadric cannot follow such
 //!    an edge and mispredicts it by 4–10 mm, which the eligibility tests above did not
 //!    always catch (48 real vertices moved > 2 mm on the 100 scans before this test, 2 after).
+//!    The spikes it keeps (2 of the 11 vertices left > 2 mm off) lie on steep sides, where
+//!    some plane through the spike meets 8 ring points; asking for 2–4 of those supporters
+//!    within 2.2 mm (the 1-ring) as well left 12 instead of 11 (one real vertex more moved).
 //! 7. **Removal** ([`removal`], [`DenoiseParams::remove_unrepairable`]): what the filter
 //!    cannot repair — rim spikes, spike clusters that are their own support — is taken out of
 //!    the mesh (a quad that loses a corner stays as a triangle); downstream steps see a
