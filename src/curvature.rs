@@ -258,21 +258,32 @@ fn fit_vertex(mesh: &Mesh, v: usize, n0: DVec3, ring: &[u32]) -> Option<Fit> {
     })
 }
 
-/// Whether λmin / λmax of the positive definite `ata` exceeds 1e-10. The bounds
-/// 1 / tr(A⁻¹) ≤ λmin and λmax ≤ tr(A) decide it without an eigensolver on all but nearly
-/// degenerate rings (the bound is loose by at most 25×, the dimension squared).
+/// Largest condition number λmax / λmin of a ring's normal matrix that is still fitted.
+const MAX_CONDITION: f64 = 1e10;
+
+/// Whether the positive definite `ata` has a condition number below [`MAX_CONDITION`].
+/// [`condition_bound`] decides it without an eigensolver on all but nearly degenerate rings.
 fn well_conditioned(
     ata: &SMatrix<f64, 5, 5>,
     chol: &nalgebra::Cholesky<f64, nalgebra::U5>,
 ) -> bool {
-    if chol.inverse().trace() * ata.trace() < 1e10 {
+    if condition_bound(ata, chol) < MAX_CONDITION {
         return true;
     }
     let eig = ata.symmetric_eigenvalues();
     let (lo, hi) = eig
         .iter()
         .fold((f64::MAX, 0.0f64), |(lo, hi), &e| (lo.min(e), hi.max(e)));
-    lo > hi * 1e-10
+    lo > hi * MAX_CONDITION.recip()
+}
+
+/// tr(A)·tr(A⁻¹), an upper bound of A's condition number (λmax ≤ tr(A), 1 / λmin ≤ tr(A⁻¹);
+/// at most 25× too large, the dimension squared). tr(A⁻¹) = ‖L⁻¹‖²_F from the Cholesky
+/// factor, so only the triangular inverse is formed. Infinite if L is singular.
+fn condition_bound(ata: &SMatrix<f64, 5, 5>, chol: &nalgebra::Cholesky<f64, nalgebra::U5>) -> f64 {
+    chol.l_dirty()
+        .solve_lower_triangular(&SMatrix::<f64, 5, 5>::identity())
+        .map_or(f64::INFINITY, |l_inv| l_inv.norm_squared() * ata.trace())
 }
 
 #[cfg(test)]
@@ -306,7 +317,7 @@ mod tests {
                 lo > hi * 1e-10,
                 "condition {cond:e}"
             );
-            if chol.inverse().trace() * a.trace() < 1e10 {
+            if condition_bound(&a, &chol) < MAX_CONDITION {
                 fast += 1;
             } else {
                 slow += 1;

@@ -1320,7 +1320,7 @@ impl QuadricFit {
                 continue;
             }
             let (x, y) = (q.x / scale, q.y / scale);
-            let all = [1.0, x, y, x * x, x * y, y * y];
+            let all = quadric_terms(x, y);
             for i in 0..K {
                 let wi = *w * all[i];
                 for j in i..K {
@@ -1461,6 +1461,11 @@ fn eligibility_floor(
         .max(rim)
 }
 
+/// The quadric's terms `[1, x, y, x², xy, y²]` at (x, y): one row of the fit's design matrix.
+fn quadric_terms(x: f64, y: f64) -> [f64; 6] {
+    [1.0, x, y, x * x, x * y, y * y]
+}
+
 fn eval_quadric(c: &[f64; 6], x: f64, y: f64) -> f64 {
     c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y
 }
@@ -1522,7 +1527,7 @@ mod tests {
         let a = nalgebra::DMatrix::from_fn(kept.len(), 6, |r, c| {
             let q = fit.pts[kept[r]];
             let w = fit.weight[kept[r]].sqrt();
-            w * [1.0, q.x, q.y, q.x * q.x, q.x * q.y, q.y * q.y][c]
+            w * quadric_terms(q.x, q.y)[c]
         });
         let b = nalgebra::DVector::from_fn(kept.len(), |r, _| {
             fit.weight[kept[r]].sqrt() * fit.pts[kept[r]].z

@@ -950,14 +950,14 @@ impl Detector<'_> {
         // The gross errors are another matter: of 480 neutral inner corners (seeds 31–34),
         // 86 are > 5 mm off, each more than 2 mm medial or up (56 both; median 4.2 mm medial,
         // 3.9 mm up): the biggest concave region is the hollow between nose bridge and eye,
-        // and its centroid lies on it; the benchmark's corner is where that hollow meets the lid fissure's thin, more
-        // curved concave band. Taking the medial end of that band instead was tried, seeds
-        // 31–33 neutral, inner L / R: the band as the longest horizontal region of curvedness
-        // ≥ 0.15 /mm, 3.12 / 3.22 → 3.07 / 3.18 (outer right 3.17 → 3.21; few points move, as
-        // the band's curvedness, 0.07–0.21 /mm, breaks it up); ≥ 0.1 /mm joins it to the
-        // hollow, 3.53 / 3.91; grown in a ±2.5 mm strip from the deepest or the most curved
-        // concave vertex lateral of the pit, 6–10 mm (the face's own fall-off is deeper than
-        // the fissure). Not kept.
+        // and its centroid lies on it; the benchmark's corner is where that hollow meets the
+        // lid fissure's thin, more curved concave band. Taking the medial end of that band
+        // instead was tried, seeds 31–33 neutral, inner L / R: the band as the longest
+        // horizontal region of curvedness ≥ 0.15 /mm, 3.12 / 3.22 → 3.07 / 3.18 (outer right
+        // 3.17 → 3.21; few points move, as the band's curvedness, 0.07–0.21 /mm, breaks it
+        // up); ≥ 0.1 /mm joins it to the hollow, 3.53 / 3.91; grown in a ±2.5 mm strip from
+        // the deepest or the most curved concave vertex lateral of the pit, 6–10 mm (the
+        // face's own fall-off is deeper than the fissure). Not kept.
         Ok(regions
             .iter()
             .take(INNER_EYE_CANDIDATE_REGIONS)
