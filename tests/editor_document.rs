@@ -261,13 +261,10 @@ fn the_whole_pipeline_on_a_real_scan_denoise_detect_register_fem() {
     let scan = common::gavab("cara1_frontal1.wrl");
     apply_with(&mut worker, &mut doc, Command::Open(Some(scan)));
     apply_with(&mut worker, &mut doc, Command::Denoise(Default::default()));
-    let moved = doc
-        .denoised
-        .as_ref()
-        .expect("denoised")
-        .report
-        .vertices_moved;
-    assert!(moved > 0);
+    // The filter repairs or removes some of the scan's spikes (on cara1_frontal1 the few
+    // repairs are in neighbourhoods that do not predict themselves, so they are removed).
+    let report = &doc.denoised.as_ref().expect("denoised").report;
+    assert!(report.vertices_moved + report.vertices_removed > 0);
     apply_with(&mut worker, &mut doc, Command::DetectLandmarks);
     assert!(doc.error.is_none(), "{:?}", doc.error);
     let l = doc.edits.landmarks.expect("detected");

@@ -46,16 +46,18 @@
 //! | point | mean error | mean offset (lateral, up, depth) |
 //! |---|---|---|
 //! | nose tip | 2.25 | (−0.05, −1.96, 0.24) |
-//! | inner eye left / right | 3.12 / 3.22 | (−0.87, 1.51, 0.37) / (−0.98, 1.62, 0.35) |
-//! | outer eye left / right | 3.01 / 3.17 | (−0.41, 0.41, 0.29) / (−0.36, 0.45, 0.16) |
+//! | inner eye left / right | 2.35 / 2.32 | (−0.20, 1.04, 0.04) / (−0.20, 1.08, 0.01) |
+//! | outer eye left / right | 2.84 / 2.99 | (0.27, 0.08, −0.14) / (0.33, 0.06, −0.14) |
 //! | nose corner left / right | 2.16 / 2.29 | (0.90, −0.54, −0.55) / (1.07, −0.50, −0.72) |
 //! | mouth corner left / right | 2.15 / 2.25 | (−0.10, −0.73, −0.39) / (0.21, −0.84, −0.49) |
 //! | chin | 3.07 | (−0.27, 1.21, 1.64) |
 //!
+//! (Inner and outer eyes since the fissure step of landmarks step 3, stop 28; before it
+//! 3.12 / 3.22 at (−0.87, 1.51, 0.37) / (−0.98, 1.62, 0.35) and 3.01 / 3.17.)
 //! The nose tip (the most protruding point) lies 2 mm below the benchmark's iBUG 30, and the
-//! inner-eye pit 1.5 mm above and 0.9 mm medial of its iBUG 39/42: most of those points' error.
-//! Subtracting the inner-eye offset gives 2.92 / 2.94 mm (held-out seed 34: 2.84 / 2.48), but
-//! on the real scans' zoomed eye pictures the pit already sits at the medial end of the lid
+//! inner-eye pit lay 1.5 mm above and 0.9 mm medial of its iBUG 39/42 (1.0 mm above since the
+//! fissure step): most of those points' error. Subtracting the (old) inner-eye offset gave
+//! 2.92 / 2.94 mm (held-out seed 34: 2.84 / 2.48), but on the real scans' zoomed eye pictures the pit already sits at the medial end of the lid
 //! fissure, or below it, and the moved point 1–2 mm below the fissure; so the offset is the
 //! benchmark's eye model, not a detector error real scans share, and it is not subtracted.
 
