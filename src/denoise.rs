@@ -108,8 +108,9 @@
 //! and 716 other vertices (0.05 %, mostly rims next to spikes and on the eye, nostril and
 //! lip gaps); from the clean twins 630 vertices (0.04 %). The goal of max ≤ 2 mm is
 //! therefore met on all but 2 of 1.58 M vertices, and every spike longer than 5 mm is
-//! gone. Held-out check, `--subjects 10 --seed 1` (50 scans): RMSE 0.171 → 0.150 mm, > 2 mm
-//! 111 → 0, max 32.6 → 1.03 mm, 348 vertices removed from the clean twins. The previous
+//! gone. Second set, `--subjects 10 --seed 1` (50 scans; held out until stop 28): RMSE
+//! 0.171 → 0.150 mm, > 2 mm 111 → 0, max 32.6 → 1.03 mm, 348 vertices removed from the
+//! clean twins. The previous
 //! default (no removal, no step-edge test): RMSE 0.180 mm, 255
 //! vertices > 2 mm, max 36.1 mm. Speed: 38 ms per synthetic scan; whole `facesynth denoise`
 //! process (read, filter, write), CPU time, paired medians against the build before removal
