@@ -613,6 +613,14 @@ impl UvBox {
     fn contains(&self, q: DVec2) -> bool {
         q.x >= self.u.0 && q.x <= self.u.1 && q.y >= self.v.0 && q.y <= self.v.1
     }
+
+    /// The box with a margin of `m` mm on every side.
+    fn grown(&self, m: f64) -> UvBox {
+        UvBox {
+            u: (self.u.0 - m, self.u.1 + m),
+            v: (self.v.0 - m, self.v.1 + m),
+        }
+    }
 }
 
 struct Detector<'a> {
@@ -1039,12 +1047,12 @@ impl Detector<'_> {
             let (qr, ql) = (frame.uv(self.p(r)), frame.uv(self.p(l)));
             (qr.x + ql.x).abs() + (qr.y - ql.y).abs()
         };
-        let pairs = [(fr, fl), (fr, left), (right, fl), (right, left)];
-        let least = pairs.iter().map(|&p| asymmetry(p)).fold(f64::MAX, f64::min);
+        let pairs = [(fr, fl), (fr, left), (right, fl), (right, left)].map(|p| (p, asymmetry(p)));
+        let least = pairs.iter().map(|&(_, a)| a).fold(f64::MAX, f64::min);
         pairs
             .into_iter()
-            .find(|&p| asymmetry(p) <= least + FISSURE_SYMMETRY_SLACK_MM)
-            .unwrap_or((right, left))
+            .find(|&(_, a)| a <= least + FISSURE_SYMMETRY_SLACK_MM)
+            .map_or((right, left), |(p, _)| p)
     }
 
     /// Step 3's refinement: the medial end of the lid fissure near the concave region's
@@ -1061,27 +1069,32 @@ impl Detector<'_> {
     /// of it: `near` stays.
     fn inner_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
         let c = frame.uv(self.p(near));
-        let (lat0, lat1, down, up) = FISSURE_BOX_MM;
-        let reach = 3.0 * FISSURE_SMOOTHING_MM;
+        // The box in `near`'s own frame: lateral (away from the midline) and up from it.
         let rel = |v: usize| {
             let q = frame.uv(self.p(v)) - c;
             DVec2::new(q.x * side, q.y)
         };
-        let in_box =
-            |q: DVec2, m: f64| q.x > lat0 - m && q.x < lat1 + m && q.y > -down - m && q.y < up + m;
-        let local: Vec<usize> = (0..self.mesh.vertex_count())
-            .filter(|&v| in_box(rel(v), reach))
+        let (lat0, lat1, down, up) = FISSURE_BOX_MM;
+        let search = UvBox {
+            u: (lat0, lat1),
+            v: (-down, up),
+        };
+        let reach = 3.0 * FISSURE_SMOOTHING_MM;
+        let surroundings = search.grown(reach);
+        let local: Vec<(usize, DVec2)> = (0..self.mesh.vertex_count())
+            .map(|v| (v, rel(v)))
+            .filter(|&(_, q)| surroundings.contains(q))
             .collect();
         let two_s2 = 2.0 * FISSURE_SMOOTHING_MM * FISSURE_SMOOTHING_MM;
         let mut mask = vec![false; self.mesh.vertex_count()];
         let mut relief = vec![0.0; self.mesh.vertex_count()];
-        for &v in &local {
-            let p = self.p(v);
-            if !in_box(rel(v), 0.0) {
+        for &(v, q) in &local {
+            if !search.contains(q) {
                 continue;
             }
+            let p = self.p(v);
             let (mut wz, mut w) = (0.0, 0.0);
-            for &u in &local {
+            for &(u, _) in &local {
                 let q = self.p(u);
                 let d2 = (q - p).truncate().length_squared();
                 if d2 < reach * reach {
@@ -1100,10 +1113,13 @@ impl Detector<'_> {
                     .any(|&u| self.topology.is_boundary[u as usize]);
             mask[v] = relief[v] < -FISSURE_MIN_DEPTH_MM && !by_hole;
         }
-        let Some(trench) = self.regions(&mask).into_iter().min_by(|a, b| {
-            let deepest = |r: &Vec<u32>| r.iter().map(|&v| relief[v as usize]).fold(0.0, f64::min);
-            deepest(a).total_cmp(&deepest(b))
-        }) else {
+        let deepest = |r: &[u32]| r.iter().map(|&v| relief[v as usize]).fold(0.0, f64::min);
+        let Some((_, trench)) = self
+            .regions(&mask)
+            .into_iter()
+            .map(|r| (deepest(&r), r))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+        else {
             return near;
         };
         if trench.len() < 3 {

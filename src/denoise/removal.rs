@@ -241,7 +241,8 @@ fn check_repairs(
             if moved[u] || removed[u] {
                 continue;
             }
-            let keep = |w: usize| w != u && w != v && !moved[w] && !removed[w];
+            // `v` itself is moved, so it is left out with the other moved vertices.
+            let keep = |w: usize| w != u && !moved[w] && !removed[w];
             if let Some((z, _, _)) = fit.predict(positions, positions[u], rings3.of(v), keep) {
                 worst_mm = worst_mm.max((positions[u].z - z).abs());
                 count += 1;
