@@ -126,6 +126,210 @@ fn registering_the_generic_face_to_itself_lands_on_the_surface_and_goes_stale_on
         Command::MoveLandmark(FeaturePoint::Chin, DVec3::new(0.0, -80.0, -20.0)),
     );
     assert!(doc.registration_stale());
+    apply(&mut doc, Command::Undo);
+    assert!(!doc.registration_stale(), "the landmarks are as registered");
+    // Erasing vertices changes the scan it was registered to.
+    apply(&mut doc, Command::Checkpoint);
+    apply(
+        &mut doc,
+        Command::Erase {
+            centre_mm: face.mesh.positions_mm[0],
+            radius_mm: 3.0,
+        },
+    );
+    assert!(!doc.edits.erased.is_empty());
+    assert!(doc.registration_stale());
+}
+
+/// A flat `n × n`-quad grid of 1 mm spacing in z = 0 centred on the origin, with one spike
+/// of `spike_mm` at (-10, -10).
+fn grid_with_spike(n: u32, spike_mm: f64) -> facesynth::Mesh {
+    let id = |i: u32, j: u32| i + (n + 1) * j;
+    let h = (n / 2) as f64;
+    let positions = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| DVec3::new(i as f64 - h, j as f64 - h, 0.0)))
+        .map(|p| {
+            if p.x == -10.0 && p.y == -10.0 {
+                p + DVec3::Z * spike_mm
+            } else {
+                p
+            }
+        })
+        .collect();
+    let faces: Vec<[u32; 4]> = (0..n)
+        .flat_map(|j| (0..n).map(move |i| [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]))
+        .collect();
+    facesynth::Mesh::from_faces(positions, faces)
+}
+
+/// The working scan's vertices are the scan's (or the denoised scan's) less the erased ones,
+/// each at its source's position.
+fn check_working(doc: &Document) {
+    let w = doc.working.as_ref().expect("a working scan");
+    let source = match &doc.denoised {
+        Some(d) => (d.mesh.clone(), d.report.kept.clone()),
+        None => {
+            let m = doc.scan.as_ref().unwrap().mesh.clone();
+            let ids = (0..m.vertex_count() as u32).collect();
+            (m, ids)
+        }
+    };
+    let position_of: std::collections::HashMap<u32, DVec3> = source
+        .1
+        .iter()
+        .zip(&source.0.positions_mm)
+        .map(|(&v, &x)| (v, x))
+        .collect();
+    assert_eq!(w.input_ids.len(), w.mesh.vertex_count());
+    for (&v, x) in w.input_ids.iter().zip(&w.mesh.positions_mm) {
+        assert!(
+            !doc.edits.erased.contains(&v),
+            "erased vertex {v} is still there"
+        );
+        assert_eq!(position_of[&v], *x, "vertex {v}");
+    }
+    let erased_present = source
+        .1
+        .iter()
+        .filter(|v| doc.edits.erased.contains(v))
+        .count();
+    assert_eq!(w.mesh.vertex_count(), source.1.len() - erased_present);
+    assert!(w.mesh.validate().is_ok());
+}
+
+#[test]
+fn erasing_by_hand_removes_the_brushed_vertices_one_undo_step_per_stroke_and_saves_the_scan() {
+    use facesynth::app::document::Part;
+    let dir = tempfile::tempdir().unwrap();
+    let scan_path = dir.path().join("grid.obj");
+    facesynth::io::write_mesh(&scan_path, &grid_with_spike(40, 25.0)).unwrap();
+    let mut doc = Document::new(generic_face::build());
+    apply(&mut doc, Command::Open(Some(scan_path)));
+    let n = doc.scan.as_ref().unwrap().mesh.vertex_count();
+    assert_eq!(n, 41 * 41);
+    assert!(!doc.is_dirty());
+
+    // A click: the grid points within 2.5 mm of the origin (i² + j² ≤ 6.25: 21 of them).
+    apply(&mut doc, Command::Checkpoint);
+    apply(
+        &mut doc,
+        Command::Erase {
+            centre_mm: DVec3::ZERO,
+            radius_mm: 2.5,
+        },
+    );
+    assert_eq!(doc.edits.erased.len(), 21);
+    check_working(&doc);
+    assert_eq!(doc.working_mesh().unwrap().vertex_count(), n - 21);
+    assert_eq!(doc.unsaved(), vec![Part::Scan]);
+    // A stroke over two frames: 5 + 5 points within 1 mm of (10, 0) and (11, 0), 2 shared.
+    apply(&mut doc, Command::Checkpoint);
+    for x in [10.0, 11.0] {
+        apply(
+            &mut doc,
+            Command::Erase {
+                centre_mm: DVec3::new(x, 0.0, 0.0),
+                radius_mm: 1.0,
+            },
+        );
+    }
+    assert_eq!(doc.edits.erased.len(), 29);
+    check_working(&doc);
+    let stroked = doc.edits.erased.clone();
+    apply(&mut doc, Command::Undo);
+    assert_eq!(doc.edits.erased.len(), 21, "one undo per stroke");
+    check_working(&doc);
+    apply(&mut doc, Command::Undo);
+    assert!(doc.edits.erased.is_empty());
+    assert_eq!(doc.working_mesh().unwrap().vertex_count(), n);
+    assert!(!doc.is_dirty(), "back to the scan as loaded");
+    apply(&mut doc, Command::Redo);
+    apply(&mut doc, Command::Redo);
+    assert_eq!(doc.edits.erased, stroked);
+
+    // Denoising keeps the erasures (they are scan ids): the spike goes, the brushed holes stay.
+    apply(&mut doc, Command::Denoise(Default::default()));
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    check_working(&doc);
+    let w = doc.working.as_ref().unwrap();
+    let top = w.mesh.positions_mm.iter().map(|x| x.z).fold(0.0, f64::max);
+    assert!(top < 2.0, "the 25 mm spike is gone: highest {top} mm");
+    assert!(
+        w.mesh
+            .positions_mm
+            .iter()
+            .all(|x| x.length() > 2.5 - 1e-9 && x.distance(DVec3::new(10.5, 0.0, 0.0)) > 1.0),
+        "no vertex inside the brushed spots"
+    );
+
+    // Saving writes the working scan and counts the erasures as saved; a failed save does not.
+    apply(
+        &mut doc,
+        Command::SaveScan(dir.path().join("no/such/dir/grid_clean.ply")),
+    );
+    assert!(doc.error.as_deref().unwrap().contains("grid_clean.ply"));
+    assert_eq!(doc.unsaved(), vec![Part::Scan]);
+    let out = dir.path().join("grid_clean.ply");
+    apply(&mut doc, Command::SaveScan(out.clone()));
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    assert!(!doc.is_dirty());
+    let saved = facesynth::io::read_mesh(&out).unwrap();
+    let w = doc.working_mesh().unwrap();
+    assert_eq!(saved.vertex_count(), w.vertex_count());
+    assert_eq!(saved.face_count(), w.face_count());
+    for (a, b) in saved.positions_mm.iter().zip(&w.positions_mm) {
+        assert!((*a - *b).length() < 1e-4, "{a} vs {b}");
+    }
+
+    // Restore all is one undoable step.
+    apply(&mut doc, Command::RestoreErased);
+    assert!(doc.edits.erased.is_empty());
+    check_working(&doc);
+    apply(&mut doc, Command::Undo);
+    assert_eq!(doc.edits.erased, stroked);
+    // A new scan starts with nothing erased.
+    apply(&mut doc, Command::Open(None));
+    assert!(doc.edits.erased.is_empty() && doc.working.is_none());
+    apply(
+        &mut doc,
+        Command::Erase {
+            centre_mm: DVec3::ZERO,
+            radius_mm: 1.0,
+        },
+    );
+    assert!(doc.error.as_deref().unwrap().contains("scan"));
+}
+
+#[test]
+fn erasing_every_corner_but_one_of_a_face_takes_the_stranded_vertex_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan_path = dir.path().join("grid.obj");
+    facesynth::io::write_mesh(&scan_path, &grid_with_spike(4, 0.0)).unwrap();
+    let mut doc = Document::new(generic_face::build());
+    apply(&mut doc, Command::Open(Some(scan_path)));
+    // The corner (-2, -2) is in one quad only; erasing its three neighbours there strands it.
+    apply(&mut doc, Command::Checkpoint);
+    for centre in [(-1.0, -2.0), (-2.0, -1.0), (-1.0, -1.0)] {
+        apply(
+            &mut doc,
+            Command::Erase {
+                centre_mm: DVec3::new(centre.0, centre.1, 0.0),
+                radius_mm: 0.1,
+            },
+        );
+    }
+    assert_eq!(doc.edits.erased.len(), 3);
+    let w = doc.working.as_ref().unwrap();
+    assert_eq!(w.mesh.vertex_count(), 25 - 4);
+    assert!(
+        !w.mesh.positions_mm.contains(&DVec3::new(-2.0, -2.0, 0.0)),
+        "no stray point is left"
+    );
+    let mut used = vec![false; w.mesh.vertex_count()];
+    for f in w.mesh.faces.iter() {
+        f.iter().for_each(|&v| used[v as usize] = true);
+    }
+    assert!(used.iter().all(|&u| u));
 }
 
 #[test]
@@ -359,9 +563,12 @@ fn session_steps_parse_and_become_the_commands_the_panels_send() {
     assert!(bad[0].action(&doc).unwrap_err().contains("muscle"));
     let e = parse("[Denoise, Frobnicate]").unwrap_err();
     assert!(e.contains("Frobnicate"), "{e}");
-    // A nudge needs a scan to snap to.
+    // A nudge or an erase needs a scan to snap to.
     let nudge = parse(r#"[NudgeLandmark(point: "chin", offset_mm: (0.0, 1.0, 0.0))]"#).unwrap();
     assert!(nudge[0].action(&doc).unwrap_err().contains("scan"));
+    let erase = parse(r#"[Erase(at_mm: (0.0, 1.0, 0.0), radius_mm: 4.0), RestoreErased]"#).unwrap();
+    assert!(erase[0].action(&doc).unwrap_err().contains("scan"));
+    assert_eq!(erase[1], Step::RestoreErased);
 }
 
 #[test]
@@ -484,6 +691,26 @@ fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
         Command::MoveLandmark(FeaturePoint::NoseTip, DVec3::new(1.5, -2.0, 80.0)),
     );
     apply(&mut doc, Command::ApplyPreset("sadness".into()));
+    // Some hair erased by hand (cara1_frontal1's forehead top).
+    let hair = doc.working_mesh().unwrap().positions_mm[doc
+        .working_mesh()
+        .unwrap()
+        .positions_mm
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.y.total_cmp(&b.1.y))
+        .unwrap()
+        .0];
+    apply(&mut doc, Command::Checkpoint);
+    apply(
+        &mut doc,
+        Command::Erase {
+            centre_mm: hair,
+            radius_mm: 6.0,
+        },
+    );
+    let erased = doc.edits.erased.len();
+    assert!(erased > 5, "{erased}");
     let mut fem = doc.edits.fem;
     fem.fat.young_modulus_pa = 240.0;
     apply(&mut doc, Command::SetFemParams(fem));
@@ -523,6 +750,12 @@ fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
     assert!(fresh.error.is_none(), "{:?}", fresh.error);
     assert_eq!(fresh.scan.as_ref().unwrap().mesh.vertex_count(), 13_709);
     assert_eq!(fresh.edits, doc.edits);
+    assert_eq!(
+        fresh.working_mesh().unwrap().vertex_count(),
+        doc.working_mesh().unwrap().vertex_count(),
+        "the erasures are applied to the reloaded scan"
+    );
+    check_working(&fresh);
     assert!(fresh.is_dirty(), "restored work is still unsaved");
     assert!(fresh.edits.presets.get("sad2").is_some());
 

@@ -1,5 +1,5 @@
-//! The editor's autosave: the document's editable state (scan path, landmarks, materials,
-//! muscles, activations, presets) as RON, written atomically every [`AUTOSAVE_INTERVAL_S`]
+//! The editor's autosave: the document's editable state (scan path, landmarks, erased vertices,
+//! materials, muscles, activations, presets) as RON, written atomically every [`AUTOSAVE_INTERVAL_S`]
 //! while there are unsaved changes and at exit, and removed at a clean exit. So a file found
 //! at start means the last session ended with unsaved work (a crash, a kill, a power cut, or
 //! closing with "keep autosave"): the editor offers to restore it.

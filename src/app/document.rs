@@ -16,7 +16,7 @@ use crate::mesh::FaceCounts;
 use crate::registration::RegistrationResult;
 use crate::{Mesh, io};
 use glam::DVec3;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -42,6 +42,23 @@ pub struct DenoiseState {
     pub spikes: Vec<u32>,
     pub millis: f64,
 }
+
+/// The mesh the pipeline steps work on: the denoised scan (or the scan) without the vertices
+/// erased by hand.
+#[derive(Debug, Clone)]
+pub struct WorkingScan {
+    pub mesh: Arc<Mesh>,
+    /// Per working vertex: its id in the scan as loaded (what [`Edits::erased`] and the
+    /// denoising report's per-input-vertex figures are indexed by).
+    pub input_ids: Vec<u32>,
+    /// Distinct for every rebuild, so results computed on an earlier working scan (feature
+    /// point detection, registration) can tell they are out of date.
+    pub id: u64,
+}
+
+/// Default radius of the erase brush, mm (a spike cluster is 1–3 scan samples across, ~1.5 mm
+/// apart on GavabDB scans).
+pub const ERASE_RADIUS_MM: f64 = 3.0;
 
 /// A move larger than this counts as a removed spike (scanner noise is ~0.15 mm).
 pub const SPIKE_MM: f64 = 2.0;
@@ -183,6 +200,11 @@ pub struct Edits {
     pub presets: ExpressionSet,
     /// The preset last applied (for "revert").
     pub applied_preset: Option<String>,
+    /// Scan vertices erased by hand (ids in the scan as loaded): spikes, hair or clothing the
+    /// filter left. They stay erased through a new denoising run; the working scan is the
+    /// (denoised) scan without them.
+    #[serde(default)]
+    pub erased: BTreeSet<u32>,
 }
 
 impl Default for Edits {
@@ -194,6 +216,7 @@ impl Default for Edits {
             activations: BTreeMap::new(),
             presets: ExpressionSet::builtin(),
             applied_preset: None,
+            erased: BTreeSet::new(),
         }
     }
 }
@@ -206,6 +229,18 @@ pub enum Command {
     Denoise(DenoiseParams),
     /// Drop the denoised scan and work on the original again.
     ClearDenoise,
+    /// Erase the working scan's vertices within `radius_mm` of a point (mm). No undo step of
+    /// its own: a click or a brush stroke sends [`Command::Checkpoint`] first, so a stroke over
+    /// many frames is one step.
+    Erase {
+        centre_mm: DVec3,
+        radius_mm: f64,
+    },
+    /// Bring every erased vertex back (one undo step).
+    RestoreErased,
+    /// Write the working scan (denoised, erased vertices gone) as .obj/.ply (atomic), to feed
+    /// the corrected scan to the batch commands.
+    SaveScan(PathBuf),
     /// Detect the 13 feature points on the working scan (denoise first for real scans).
     DetectLandmarks,
     /// Place one feature point (snapped to the surface by the caller).
@@ -260,6 +295,16 @@ pub struct Document {
     pub generic: Arc<GenericFace>,
     pub scan: Option<ScanState>,
     pub denoised: Option<DenoiseState>,
+    /// The (denoised) scan without the erased vertices; `None` without a scan.
+    pub working: Option<WorkingScan>,
+    /// Rebuilds of the working scan so far (the next [`WorkingScan::id`]).
+    working_count: u64,
+    /// The working scan each running detection / registration job was sent with, and the one
+    /// the current result was computed on.
+    detect_sent_on: u64,
+    register_sent_on: u64,
+    detected_on: u64,
+    registered_on: u64,
     pub detection: Option<DetectionState>,
     pub registration: Option<RegistrationState>,
     pub fem: Option<FemState>,
@@ -303,6 +348,8 @@ pub enum Part {
     Materials,
     /// Muscle definitions: no file of their own in the editor; kept by the autosave.
     Muscles,
+    /// Vertices erased by hand: saved by `SaveScan` (the corrected scan).
+    Scan,
 }
 
 impl Part {
@@ -313,6 +360,7 @@ impl Part {
             Part::Activations => "activations",
             Part::Materials => "materials",
             Part::Muscles => "muscles",
+            Part::Scan => "erased vertices (the scan)",
         }
     }
 }
@@ -324,6 +372,12 @@ impl Document {
             generic: Arc::new(generic),
             scan: None,
             denoised: None,
+            working: None,
+            working_count: 0,
+            detect_sent_on: 0,
+            register_sent_on: 0,
+            detected_on: 0,
+            registered_on: 0,
             detection: None,
             registration: None,
             fem: None,
@@ -368,6 +422,9 @@ impl Document {
         if e.muscles != s.muscles {
             out.push(Part::Muscles);
         }
+        if e.erased != s.erased {
+            out.push(Part::Scan);
+        }
         out
     }
 
@@ -399,12 +456,66 @@ impl Document {
         }
     }
 
-    /// The mesh the pipeline works on: the denoised scan if there is one, else the scan.
+    /// The mesh the pipeline works on: the denoised scan if there is one, else the scan, less
+    /// the vertices erased by hand.
     pub fn working_mesh(&self) -> Option<&Arc<Mesh>> {
-        self.denoised
-            .as_ref()
-            .map(|d| &d.mesh)
-            .or(self.scan.as_ref().map(|s| &s.mesh))
+        self.working.as_ref().map(|w| &w.mesh)
+    }
+
+    /// Builds the working scan again after the scan, the denoising or the erased set changed.
+    fn rebuild_working(&mut self) {
+        self.version += 1;
+        self.working_count += 1;
+        let Some(scan) = &self.scan else {
+            self.working = None;
+            return;
+        };
+        let (base, ids) = match &self.denoised {
+            Some(d) => (&d.mesh, d.report.kept.clone()),
+            None => (&scan.mesh, (0..scan.mesh.vertex_count() as u32).collect()),
+        };
+        let erased = &self.edits.erased;
+        let keep: Vec<bool> = ids.iter().map(|v| !erased.contains(v)).collect();
+        let (mesh, input_ids) = if keep.iter().all(|&k| k) {
+            (base.clone(), ids)
+        } else {
+            // A vertex whose faces were all erased goes too (a stray point would otherwise
+            // stay behind in the saved scan); points the scan had without faces stay.
+            let mut keep = keep;
+            let in_face = |m: &Mesh, keep: &[bool]| {
+                let mut used = vec![false; m.vertex_count()];
+                for f in m.faces.iter() {
+                    if f.iter().filter(|&&v| keep[v as usize]).count() >= 3 {
+                        f.iter().for_each(|&v| used[v as usize] = true);
+                    }
+                }
+                used
+            };
+            let all = vec![true; keep.len()];
+            let before = in_face(base, &all);
+            let after = in_face(base, &keep);
+            for (k, (b, a)) in keep.iter_mut().zip(before.iter().zip(&after)) {
+                *k &= !*b || *a;
+            }
+            let mut mesh = (**base).clone();
+            let kept = mesh.retain_vertices(&keep);
+            let input_ids = kept.iter().map(|&v| ids[v as usize]).collect();
+            (Arc::new(mesh), input_ids)
+        };
+        self.working = Some(WorkingScan {
+            mesh,
+            input_ids,
+            id: self.working_count,
+        });
+    }
+
+    fn working_id(&self) -> u64 {
+        self.working.as_ref().map_or(0, |w| w.id)
+    }
+
+    /// The detection was run on the working scan as it is now (its shape index fits it).
+    pub fn detection_current(&self) -> bool {
+        self.detection.is_some() && self.detected_on == self.working_id()
     }
 
     /// True while the worker has something to do.
@@ -412,10 +523,12 @@ impl Document {
         !self.pending.is_empty()
     }
 
-    /// The registration was computed from other landmarks (or another scan) than the current.
+    /// The registration was computed from other landmarks (or another working scan) than the
+    /// current.
     pub fn registration_stale(&self) -> bool {
+        let scan_changed = self.registered_on != self.working_id();
         match (&self.registration, &self.edits.landmarks) {
-            (Some(r), Some(l)) => r.landmarks != *l,
+            (Some(r), Some(l)) => r.landmarks != *l || scan_changed,
             (Some(_), None) => true,
             _ => false,
         }
@@ -449,6 +562,9 @@ impl Document {
                     self.registration = None;
                     self.edits.landmarks = Some(self.generic.landmarks());
                     self.saved.landmarks = self.edits.landmarks;
+                    self.edits.erased.clear();
+                    self.saved.erased.clear();
+                    self.rebuild_working();
                     self.history.clear();
                     self.version += 1;
                     if self.fem.as_ref().is_some_and(|f| f.surface_id != 0) {
@@ -470,12 +586,56 @@ impl Document {
             },
             Command::ClearDenoise => {
                 self.denoised = None;
-                self.version += 1;
+                self.rebuild_working();
+                Vec::new()
+            }
+            Command::Erase {
+                centre_mm,
+                radius_mm,
+            } => {
+                let Some(w) = &self.working else {
+                    return self.fail("open a scan first");
+                };
+                let r2 = radius_mm * radius_mm;
+                let before = self.edits.erased.len();
+                self.edits.erased.extend(
+                    w.mesh
+                        .positions_mm
+                        .iter()
+                        .zip(&w.input_ids)
+                        .filter(|(x, _)| x.distance_squared(centre_mm) <= r2)
+                        .map(|(_, &v)| v),
+                );
+                if self.edits.erased.len() != before {
+                    self.rebuild_working();
+                }
+                Vec::new()
+            }
+            Command::RestoreErased => {
+                if !self.edits.erased.is_empty() {
+                    self.history.checkpoint(&self.edits);
+                    self.edits.erased.clear();
+                    self.rebuild_working();
+                }
+                Vec::new()
+            }
+            Command::SaveScan(path) => {
+                let Some(mesh) = self.working_mesh() else {
+                    return self.fail("open a scan first");
+                };
+                match io::write_mesh(&path, mesh) {
+                    Ok(()) => {
+                        self.saved.erased = self.edits.erased.clone();
+                        self.status = Some(format!("wrote {}", path.display()));
+                    }
+                    Err(e) => self.error = Some(e.to_string()),
+                }
                 Vec::new()
             }
             Command::DetectLandmarks => match self.working_mesh() {
                 Some(mesh) => {
                     let job = Job::DetectLandmarks { mesh: mesh.clone() };
+                    self.detect_sent_on = self.working_id();
                     self.pending.push("detecting");
                     vec![job]
                 }
@@ -533,6 +693,7 @@ impl Document {
                     landmarks: Box::new(*landmarks),
                     borders_detected: border_detected,
                 };
+                self.register_sent_on = self.working_id();
                 self.pending.push("registering");
                 vec![job]
             }
@@ -723,11 +884,16 @@ impl Document {
         }
     }
 
-    /// Restores an undo/redo snapshot; the FEM model follows changed materials or muscles.
+    /// Restores an undo/redo snapshot; the FEM model follows changed materials or muscles, the
+    /// working scan the erased vertices.
     fn restore(&mut self, edits: Edits) -> Vec<Job> {
         let fem_changed = edits.fem != self.edits.fem || edits.muscles != self.edits.muscles;
+        let erased_changed = edits.erased != self.edits.erased;
         self.edits = edits;
         self.version += 1;
+        if erased_changed {
+            self.rebuild_working();
+        }
         if fem_changed {
             self.fem_job()
         } else {
@@ -817,23 +983,27 @@ impl Document {
                 self.detection = None;
                 self.registration = None;
                 self.fem_dirty |= self.fem.as_ref().is_some_and(|f| f.surface_id != 0);
-                // A new scan's feature points are unknown until detected, loaded or placed.
+                // A new scan's feature points are unknown until detected, loaded or placed,
+                // and none of its vertices is erased.
                 self.edits.landmarks = None;
                 self.saved.landmarks = None;
+                self.edits.erased.clear();
+                self.saved.erased.clear();
                 self.history.clear();
-                self.version += 1;
                 if let Some(edits) = self.pending_restore.take() {
                     self.fem_dirty |=
                         edits.fem != self.edits.fem || edits.muscles != self.edits.muscles;
                     self.edits = edits;
                 }
+                self.rebuild_working();
             }
             JobResult::Denoised(Ok(d)) => {
                 self.denoised = Some(*d);
-                self.version += 1;
+                self.rebuild_working();
             }
             JobResult::Registered(Ok(r)) => {
                 self.registration = Some(*r);
+                self.registered_on = self.register_sent_on;
                 self.registration_count += 1;
                 self.version += 1;
                 // The FEM model follows the new face.
@@ -859,6 +1029,7 @@ impl Document {
                     n => format!("13 points found, {n} warnings"),
                 });
                 self.detection = Some(*d);
+                self.detected_on = self.detect_sent_on;
                 self.version += 1;
             }
             JobResult::Loaded(Err(e))

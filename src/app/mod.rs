@@ -213,6 +213,11 @@ pub struct EditorApp {
     landmark_drag: Option<FeaturePoint>,
     /// The feature point the next click on the surface places.
     picking: Option<FeaturePoint>,
+    /// The erase brush is on: clicks and primary drags on the scan erase vertices.
+    erasing: bool,
+    erase_radius_mm: f64,
+    /// The current brush stroke has sent its undo checkpoint.
+    erase_stroke_started: bool,
     denoise_params: crate::denoise::DenoiseParams,
     /// Materials being dragged (sent to the worker on release).
     fem_draft: Option<crate::fem::FemParams>,
@@ -296,6 +301,9 @@ impl EditorApp {
             scripted,
             landmark_drag: None,
             picking: None,
+            erasing: false,
+            erase_radius_mm: document::ERASE_RADIUS_MM,
+            erase_stroke_started: false,
             denoise_params: Default::default(),
             fem_draft: None,
             muscle_draft: None,
@@ -422,6 +430,7 @@ impl EditorApp {
         }
         if ctx.input(|i| i.key_pressed(egui::Key::Escape)) {
             self.picking = None;
+            self.erasing = false;
         }
     }
 
@@ -561,6 +570,12 @@ impl EditorApp {
                         });
                     }
                     self.commands.push(Command::SavePresets(path));
+                }
+                if unsaved.contains(&document::Part::Scan)
+                    && ui.button("Save scan…").clicked()
+                    && let Some(path) = panels::denoise_ui::save_scan_dialog(self)
+                {
+                    self.commands.push(Command::SaveScan(path));
                 }
             });
             ui.separator();

@@ -11,6 +11,8 @@
 //!     Denoise,
 //!     Show(Denoise),
 //!     Screenshot("shots/01_denoise.png"),
+//!     Erase(at_mm: (60.0, 10.0, -40.0), radius_mm: 8.0),
+//!     SaveScan("shots/cara1_frontal1_clean.ply"),
 //!     NudgeLandmark(point: "mouth_corner_left", offset_mm: (0.0, 3.0, 0.0)),
 //!     Activation(muscle: "zygomatic_major_left", value: 1.5, mirror: true),
 //!     Undo,
@@ -33,6 +35,16 @@ pub enum Step {
     Denoise,
     /// Show the original scan instead of the denoised one (the before/after toggle).
     ShowOriginal(bool),
+    /// One click of the erase brush at the working scan's vertex nearest a point (mm, scan
+    /// frame): an undo step erasing the vertices within `radius_mm` of it.
+    Erase {
+        at_mm: (f64, f64, f64),
+        radius_mm: f64,
+    },
+    /// Bring every erased vertex back.
+    RestoreErased,
+    /// Write the working scan (denoised, erased vertices gone).
+    SaveScan(PathBuf),
     DetectLandmarks,
     /// Move a feature point by an offset (mm, scan frame), snapped to the nearest vertex of the
     /// working scan: what a click on the surface does.
@@ -124,6 +136,19 @@ impl Step {
             Step::Open(p) => commands(vec![C::Open(Some(p.clone()))]),
             Step::Denoise => commands(vec![C::Denoise(Default::default())]),
             Step::ShowOriginal(b) => Ok(Action::View(ViewChange::ShowOriginal(*b))),
+            Step::Erase { at_mm, radius_mm } => {
+                let mesh = doc.working_mesh().ok_or("no scan is open")?;
+                let centre_mm = nearest_vertex(mesh, DVec3::from(*at_mm))?;
+                commands(vec![
+                    C::Checkpoint,
+                    C::Erase {
+                        centre_mm,
+                        radius_mm: *radius_mm,
+                    },
+                ])
+            }
+            Step::RestoreErased => commands(vec![C::RestoreErased]),
+            Step::SaveScan(p) => commands(vec![C::SaveScan(p.clone())]),
             Step::DetectLandmarks => commands(vec![C::DetectLandmarks]),
             Step::NudgeLandmark { point, offset_mm } => {
                 let p = FeaturePoint::from_name(point)
@@ -135,16 +160,7 @@ impl Step {
                     .ok_or("no landmarks to move yet (detect or load them first)")?;
                 let mesh = doc.working_mesh().ok_or("no scan is open")?;
                 let target = landmarks.get(p) + DVec3::from(*offset_mm);
-                let snapped = mesh
-                    .positions_mm
-                    .iter()
-                    .copied()
-                    .min_by(|a, b| {
-                        a.distance_squared(target)
-                            .total_cmp(&b.distance_squared(target))
-                    })
-                    .ok_or("the scan has no vertices")?;
-                commands(vec![C::MoveLandmark(p, snapped)])
+                commands(vec![C::MoveLandmark(p, nearest_vertex(mesh, target)?)])
             }
             Step::LoadLandmarks(p) => commands(vec![C::LoadLandmarks(p.clone())]),
             Step::SaveLandmarks(p) => commands(vec![C::SaveLandmarks(p.clone())]),
@@ -206,6 +222,18 @@ impl Step {
             Step::Screenshot(p) => Ok(Action::Screenshot(p.clone())),
         }
     }
+}
+
+/// The mesh's vertex nearest `target`, mm (what a click on the surface there picks).
+fn nearest_vertex(mesh: &crate::Mesh, target: DVec3) -> Result<DVec3, String> {
+    mesh.positions_mm
+        .iter()
+        .copied()
+        .min_by(|a, b| {
+            a.distance_squared(target)
+                .total_cmp(&b.distance_squared(target))
+        })
+        .ok_or_else(|| "the scan has no vertices".to_string())
 }
 
 /// `x_left` ↔ `x_right`; none for the jaw's actuators (`jaw_left` and `jaw_right` are

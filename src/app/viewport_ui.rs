@@ -152,13 +152,11 @@ fn build_scene(app: &EditorApp) -> SceneCache {
     let mut underlay = previous.and_then(|p| p.underlay.clone());
     let mut legend = None;
     let pick_surface;
-    let shown_scan = doc
-        .scan
-        .as_ref()
-        .map(|scan| match (&doc.denoised, view.show_original) {
-            (Some(d), false) => d.mesh.clone(),
-            _ => scan.mesh.clone(),
-        });
+    let shown_scan = match (&doc.scan, &doc.working) {
+        (Some(scan), _) if view.show_original => Some(scan.mesh.clone()),
+        (_, Some(w)) => Some(w.mesh.clone()),
+        _ => None,
+    };
     let fem = doc.fem.as_ref().filter(|_| {
         view.layers.show_fem && matches!(view.overlay, Overlay::Plain | Overlay::Displacement)
     });
@@ -258,17 +256,24 @@ fn build_scene(app: &EditorApp) -> SceneCache {
             // Per input vertex on the original (removed vertices grey), per kept vertex on
             // the denoised scan.
             let scale = denoise_scale(&d.report.displacement_mm);
-            colours = Some(if view.show_original {
-                scale.colours(&d.report.displacement_mm)
-            } else {
-                scale.colours(&d.report.output_displacement_mm())
-            });
+            colours = match (&doc.working, view.show_original) {
+                (Some(w), false) => {
+                    let per_vertex: Vec<f64> = w
+                        .input_ids
+                        .iter()
+                        .map(|&v| d.report.displacement_mm[v as usize])
+                        .collect();
+                    Some(scale.colours(&per_vertex))
+                }
+                _ => Some(scale.colours(&d.report.displacement_mm)),
+            };
             legend = Some(scale);
         }
         // The shape index belongs to the mesh the detector ran on (the working scan).
         if view.overlay == Overlay::ShapeIndex
             && !view.show_original
             && let Some(d) = &doc.detection
+            && doc.detection_current()
             && d.shape_index.len() == shown.vertex_count()
         {
             let scale = ColourScale {
@@ -493,12 +498,71 @@ pub fn viewport_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     if let Some(scale) = &scene.legend {
         legend_ui(&painter, rect, scale);
     }
+    if app.erasing {
+        brush_outline(app, &painter, &response);
+    }
+}
+
+/// The erase brush: a click or a primary drag erases the working scan's vertices within the
+/// brush radius of the surface under the pointer, one undo step per stroke. Returns whether
+/// the primary button is busy erasing (so it does not orbit too).
+fn erase_brush(app: &mut EditorApp, response: &egui::Response, rect: egui::Rect) -> bool {
+    use super::document::Command;
+    let primary = egui::PointerButton::Primary;
+    let starts = response.drag_started_by(primary) || response.clicked();
+    if starts {
+        app.erase_stroke_started = false;
+    }
+    let active = starts || response.dragged_by(primary);
+    if active
+        && let Some(pos) = response.interact_pointer_pos()
+        && let Some(hit) = surface_hit(app, pos - rect.min, rect)
+    {
+        // The checkpoint comes with the stroke's first hit: a click beside the scan is no step.
+        if !app.erase_stroke_started {
+            app.commands.push(Command::Checkpoint);
+            app.erase_stroke_started = true;
+        }
+        app.commands.push(Command::Erase {
+            centre_mm: hit,
+            radius_mm: app.erase_radius_mm,
+        });
+    }
+    active
+}
+
+/// The erase brush's outline around the surface point under the pointer.
+fn brush_outline(app: &EditorApp, painter: &egui::Painter, response: &egui::Response) {
+    let rect = response.rect;
+    let Some(pos) = response.hover_pos() else {
+        return;
+    };
+    let Some(hit) = surface_hit(app, pos - rect.min, rect) else {
+        return;
+    };
+    let (right, _) = app.camera.right_up();
+    let (w, h) = (rect.width() as f64, rect.height() as f64);
+    let (Some(c), Some(e)) = (
+        app.camera.project_to_pixels(hit, w, h),
+        app.camera
+            .project_to_pixels(hit + right * app.erase_radius_mm, w, h),
+    ) else {
+        return;
+    };
+    let radius_px = ((e[0] - c[0]).powi(2) + (e[1] - c[1]).powi(2)).sqrt() as f32;
+    painter.circle_stroke(
+        rect.min + egui::vec2(c[0] as f32, c[1] as f32),
+        radius_px.max(2.0),
+        egui::Stroke::new(1.5, egui::Color32::from_rgb(255, 120, 60)),
+    );
 }
 
 fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+    let erasing = app.erasing && erase_brush(app, response, rect);
     // Dragging a landmark marker moves the point over the surface; anywhere else a primary
-    // drag orbits.
-    if response.drag_started_by(egui::PointerButton::Primary)
+    // drag orbits (in erase mode it erases).
+    if !app.erasing
+        && response.drag_started_by(egui::PointerButton::Primary)
         && let Some(press) = ui.input(|i| i.pointer.press_origin())
     {
         app.landmark_drag = landmark_under(app, press - rect.min, rect);
@@ -521,7 +585,7 @@ fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect:
     }
     let camera = &mut app.camera;
     let delta = response.drag_delta();
-    if response.dragged_by(egui::PointerButton::Primary) {
+    if response.dragged_by(egui::PointerButton::Primary) && !erasing {
         camera.orbit(delta.x as f64, delta.y as f64);
     } else if response.dragged_by(egui::PointerButton::Secondary)
         || response.dragged_by(egui::PointerButton::Middle)
@@ -541,6 +605,7 @@ fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect:
     }
     // Placing a landmark: a click (not a drag) on the surface shown.
     if response.clicked()
+        && !app.erasing
         && let Some(point) = app.picking
         && let Some(pos) = response.interact_pointer_pos()
         && let Some(hit) = surface_hit(app, pos - rect.min, rect)

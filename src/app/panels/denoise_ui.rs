@@ -67,4 +67,68 @@ pub fn denoise_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         ui.checkbox(&mut app.view.show_original, "Show the original (before)");
         ui.checkbox(&mut app.view.show_spikes, "Mark removed spikes");
     }
+    erase_ui(app, ui);
+}
+
+/// Erasing by hand what the filter left (a spike cluster, hair, an ear), and saving the
+/// corrected scan for the batch commands.
+fn erase_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.separator();
+    let has_scan = app.doc.working.is_some();
+    ui.horizontal(|ui| {
+        ui.add_enabled_ui(has_scan, |ui| {
+            ui.toggle_value(&mut app.erasing, "Erase brush")
+                .on_hover_text("click or drag on the scan to erase; Esc ends (orbit needs it off)");
+        });
+        ui.add(
+            egui::Slider::new(&mut app.erase_radius_mm, 0.5..=30.0)
+                .logarithmic(true)
+                .suffix(" mm")
+                .text("radius"),
+        );
+    });
+    let erased = app.doc.edits.erased.len();
+    let working = app
+        .doc
+        .working
+        .as_ref()
+        .map_or(0, |w| w.mesh.vertex_count());
+    ui.label(format!(
+        "{erased} vertices erased by hand; working scan {working} vertices"
+    ));
+    ui.horizontal(|ui| {
+        if ui
+            .add_enabled(erased > 0, egui::Button::new("Restore all"))
+            .clicked()
+        {
+            app.commands.push(Command::RestoreErased);
+        }
+        if ui
+            .add_enabled(has_scan, egui::Button::new("Save scan…"))
+            .on_hover_text("the working scan: denoised, erased vertices gone (.obj/.ply)")
+            .clicked()
+            && let Some(path) = save_scan_dialog(app)
+        {
+            app.commands.push(Command::SaveScan(path));
+        }
+    });
+    if !has_scan {
+        app.erasing = false;
+    }
+}
+
+/// Asks where to write the working scan (`<scan>_clean.ply` beside the scan by default).
+pub fn save_scan_dialog(app: &EditorApp) -> Option<std::path::PathBuf> {
+    let mut dialog = rfd::FileDialog::new().add_filter("mesh", &["ply", "obj"]);
+    if let Some(scan) = &app.doc.scan {
+        if let Some(dir) = scan.path.parent() {
+            dialog = dialog.set_directory(dir);
+        }
+        let stem = scan
+            .path
+            .file_stem()
+            .map_or("scan".into(), |s| s.to_string_lossy());
+        dialog = dialog.set_file_name(format!("{stem}_clean.ply"));
+    }
+    dialog.save_file()
 }

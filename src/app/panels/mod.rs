@@ -1,7 +1,7 @@
 //! The side panels, one file per step. Each reads the document and view state and pushes
 //! [`Command`](super::document::Command)s; none of them computes anything itself.
 
-mod denoise_ui;
+pub(super) mod denoise_ui;
 mod expressions_ui;
 mod file_ui;
 mod landmarks_ui;

@@ -35,7 +35,7 @@ pub fn registration_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     if app.doc.registration_stale() {
         ui.colored_label(
             egui::Color32::from_rgb(250, 210, 80),
-            "landmarks changed since: register again",
+            "landmarks or scan changed since: register again",
         );
     }
     let r = &reg.result;
