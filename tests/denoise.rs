@@ -476,11 +476,11 @@ fn default_beats_the_baselines_on_generated_scans() {
         input.over_2mm,
         ours.max_mm
     );
-    // What removal costs: measured 84 spike and 58 other vertices of ~153,000, and 45 of
-    // the clean twins'.
+    // What removal costs: measured 220 spike and 179 other vertices of ~153,000, and 104 of
+    // the clean twins' (65 and 44 before isolated fragments of ≤ 4 vertices were removed).
     let vertices: usize = pairs.iter().map(|p| p.noisy.vertex_count()).sum();
     assert!(ours.removed_spikes > 0, "{ours:?}");
-    assert!(ours.removed_non_spike * 1000 < vertices, "{ours:?}");
+    assert!(ours.removed_non_spike * 500 < vertices, "{ours:?}");
     assert!(ours.clean_removed * 1000 < vertices, "{ours:?}");
     assert!(ours.shrinkage_mm.abs() < 0.02, "{ours:?}");
     // Noise-free twins are (almost) left alone.
