@@ -144,7 +144,9 @@ use glam::DVec3;
 use serde::Serialize;
 
 /// Which filter [`denoise`] runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum DenoiseMethod {
     /// The paper's filter: median, then Laplacian, move only the largest changes.
@@ -169,7 +171,9 @@ impl DenoiseMethod {
 
 /// Over which vertices the threshold `w · max d` of [`DenoiseMethod::MedianLaplacian`] takes
 /// its maximum.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum MoveRule {
     /// The paper, literally: one maximum over the whole mesh.
@@ -183,7 +187,9 @@ pub enum MoveRule {
 
 /// How boundary vertices (scan border, hole and hair rims) are filtered. Applies to all
 /// methods.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum BoundaryRule {
     /// Filter a boundary vertex along the boundary only: its neighbours are the vertices it
@@ -196,7 +202,9 @@ pub enum BoundaryRule {
 
 /// How [`DenoiseMethod::MedianLaplacian`] estimates where a vertex should be (steps 1–2 of
 /// the iteration); the thresholding and moving (steps 3–6) are the same for both.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Estimator {
     /// The paper: component-wise median of the 1-ring, then the umbrella Laplacian of the
@@ -213,8 +221,9 @@ pub enum Estimator {
     RobustQuadric,
 }
 
-/// Parameters of [`denoise`].
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+/// Parameters of [`denoise`] (missing fields read as their defaults).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct DenoiseParams {
     /// Filter to run. Default [`DenoiseMethod::MedianLaplacian`].
     pub method: DenoiseMethod,

@@ -684,6 +684,11 @@ fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
         &mut doc,
         Command::Open(Some(common::gavab("cara1_frontal1.wrl"))),
     );
+    let params = facesynth::denoise::DenoiseParams {
+        iterations: 9,
+        ..Default::default()
+    };
+    apply(&mut doc, Command::Denoise(params));
     let start = doc.generic.landmarks();
     apply(&mut doc, Command::SetLandmarks(Box::new(start)));
     apply(
@@ -751,13 +756,37 @@ fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
     assert_eq!(fresh.scan.as_ref().unwrap().mesh.vertex_count(), 13_709);
     assert_eq!(fresh.edits, doc.edits);
     assert_eq!(
-        fresh.working_mesh().unwrap().vertex_count(),
-        doc.working_mesh().unwrap().vertex_count(),
-        "the erasures are applied to the reloaded scan"
+        fresh.denoised.as_ref().map(|d| d.params),
+        Some(params),
+        "the scan is denoised again as it was"
+    );
+    assert_eq!(
+        fresh.working_mesh().unwrap().positions_mm,
+        doc.working_mesh().unwrap().positions_mm,
+        "the erasures are applied to the same denoised scan"
     );
     check_working(&fresh);
     assert!(fresh.is_dirty(), "restored work is still unsaved");
     assert!(fresh.edits.presets.get("sad2").is_some());
+
+    // An autosave written before erasing and denoising were kept still reads.
+    let older = AutosaveState {
+        scan: None,
+        denoise: None,
+        edits: facesynth::app::document::Edits::default(),
+        ..back.clone()
+    };
+    let text: String = older
+        .to_ron()
+        .lines()
+        .filter(|l| !l.contains("erased:") && !l.contains("denoise:"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(
+        !text.contains("erased") && !text.contains("denoise"),
+        "{text}"
+    );
+    assert_eq!(AutosaveState::from_ron(&text, &path).unwrap(), older);
 
     // A damaged autosave is reported with its name, not restored.
     std::fs::write(&path, "(format: 1, saved_unix_s: ").unwrap();

@@ -26,6 +26,10 @@ pub struct AutosaveState {
     pub scan: Option<PathBuf>,
     /// The document's edits, exactly what undo/redo restores.
     pub edits: Edits,
+    /// The denoising run on the scan, if any: restoring runs it again (it is deterministic),
+    /// so the erased vertices and the landmarks come back on the same working scan.
+    #[serde(default)]
+    pub denoise: Option<crate::denoise::DenoiseParams>,
 }
 
 impl AutosaveState {
@@ -38,6 +42,7 @@ impl AutosaveState {
                 .map_or(0, |d| d.as_secs()),
             scan: doc.scan.as_ref().map(|s| s.path.clone()),
             edits: doc.edits.clone(),
+            denoise: doc.denoised.as_ref().map(|d| d.params),
         }
     }
 

@@ -333,6 +333,8 @@ pub struct Document {
     saved: Edits,
     /// Edits from an autosave, put back once the scan it was made on has loaded.
     pending_restore: Option<Edits>,
+    /// The autosave's denoising, run again once its scan has loaded.
+    pending_denoise: Option<DenoiseParams>,
 }
 
 /// A part of the edits that can be unsaved (see [`Document::unsaved`]).
@@ -394,6 +396,7 @@ impl Document {
                 ..Edits::default()
             },
             pending_restore: None,
+            pending_denoise: None,
             history: History::new(200),
             version: 0,
             pending: Vec::new(),
@@ -445,6 +448,7 @@ impl Document {
         match &state.scan {
             Some(path) => {
                 self.pending_restore = Some(edits);
+                self.pending_denoise = state.denoise;
                 self.apply(Command::Open(Some(path.clone())))
             }
             None => {
@@ -976,6 +980,7 @@ impl Document {
         if let Some(i) = self.pending.iter().position(|p| *p == what) {
             self.pending.remove(i);
         }
+        let mut jobs = Vec::new();
         match result {
             JobResult::Loaded(Ok(scan)) => {
                 self.scan = Some(*scan);
@@ -996,6 +1001,14 @@ impl Document {
                     self.edits = edits;
                 }
                 self.rebuild_working();
+                if let (Some(params), Some(scan)) = (self.pending_denoise.take(), &self.scan) {
+                    let job = Job::Denoise {
+                        mesh: scan.mesh.clone(),
+                        params,
+                    };
+                    self.pending.push("denoising");
+                    jobs.push(job);
+                }
             }
             JobResult::Denoised(Ok(d)) => {
                 self.denoised = Some(*d);
@@ -1038,6 +1051,9 @@ impl Document {
             | JobResult::Fem(Err(e))
             | JobResult::Detected(Err(e))
             | JobResult::Fitted(Err(e)) => {
+                if what == "loading" {
+                    self.pending_denoise = None;
+                }
                 if what == "loading" && self.pending_restore.take().is_some() {
                     self.error = Some(format!("autosave not restored: {e}"));
                 } else {
@@ -1046,9 +1062,8 @@ impl Document {
             }
         }
         if self.fem_dirty {
-            self.fem_job()
-        } else {
-            Vec::new()
+            jobs.extend(self.fem_job());
         }
+        jobs
     }
 }
