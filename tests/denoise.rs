@@ -464,6 +464,18 @@ fn default_beats_the_baselines_on_generated_scans() {
         eval::markdown_table(&[input.clone(), ours.clone(), lap.clone(), taubin.clone()])
     );
     assert!(input.rmse_mm > 0.8, "input {input:?}");
+    // Injected spikes leave the surface: over 90 % of the input's vertices > 2 mm off their
+    // twins are > 2 mm off the clean surface too (z spikes on steep sides are closer to it;
+    // 98.8 % on seed 2024's 100 scans). The default leaves none > 2 mm off it.
+    let (input_far, ours_far) = (
+        input.over_2mm_surface.unwrap(),
+        ours.over_2mm_surface.unwrap(),
+    );
+    assert!(input_far <= input.over_2mm && input_far * 10 > input.over_2mm * 9);
+    assert!(
+        ours_far == 0 && ours.max_surface_mm.unwrap() <= ours.max_mm,
+        "{ours:?}"
+    );
     assert!(ours.rmse_mm < 0.2, "{ours:?}"); // measured 0.151 mm
     assert!(ours.rmse_mm < 0.5 * lap.rmse_mm.min(taubin.rmse_mm));
     // The goal, every spike gone: max error ≤ 2 mm (measured 1.54 mm, none of the

@@ -7,6 +7,11 @@
 //!   (sideways drift counts, not only z);
 //! * **RMSE** and **max**: over all vertices; `rmse_non_spike` leaves out the injected spike
 //!   vertices (it shows what happens to the σ = 0.15 mm scanner noise);
+//! * **surface distance** of a vertex: the distance from its denoised position to the clean
+//!   twin's surface (the nearest point of its polygons). At most the error; smaller where a
+//!   vertex is off along the surface, as a z spike on a steep side mostly is (the scanner's
+//!   line of sight grazes it). `max_surface` and `over_2mm_surface` are the max and the
+//!   2 mm count of it, over all vertices as above;
 //! * **shrinkage**: minus the mean signed displacement (output − input) along the clean
 //!   twin's outward vertex normal, over the non-spike vertices: > 0 means the surface moved
 //!   inwards on average;
@@ -21,10 +26,12 @@
 use super::{DenoiseMethod, DenoiseParams, DenoiseReport, FilterNeighbours, STILL_MM, denoise};
 use crate::ground_truth::{ScanTruth, TruthGrid};
 use crate::mesh::{Mesh, Topology};
+use crate::registration::SurfaceIndex;
 use crate::{Error, Result, io};
 use glam::DVec3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 use std::time::Instant;
 
 /// A noisy scan, its clean twin and the vertex correspondence.
@@ -38,6 +45,36 @@ pub struct ScanPair {
     pub to_clean: Vec<u32>,
     /// Noisy vertices that carry an injected spike.
     pub is_spike: Vec<bool>,
+    /// The clean twin's surface for point-to-surface distances, built on first use.
+    clean_surface: OnceLock<SurfaceIndex>,
+}
+
+impl ScanPair {
+    pub fn new(
+        name: String,
+        noisy: Mesh,
+        clean: Mesh,
+        to_clean: Vec<u32>,
+        is_spike: Vec<bool>,
+    ) -> Self {
+        ScanPair {
+            name,
+            noisy,
+            clean,
+            to_clean,
+            is_spike,
+            clean_surface: OnceLock::new(),
+        }
+    }
+
+    /// Distance from `p` to the clean twin's surface, mm, given that clean vertex `c` is
+    /// `bound_mm` away (so the search stops there).
+    fn surface_distance(&self, p: DVec3, bound_mm: f64) -> f64 {
+        let index = self
+            .clean_surface
+            .get_or_init(|| SurfaceIndex::new(&self.clean, 4.0));
+        index.distance(p, bound_mm).min(bound_mm)
+    }
 }
 
 /// Error statistics of one method (see the module docs for the definitions).
@@ -51,6 +88,11 @@ pub struct MethodScore {
     pub max_mm: f64,
     /// Vertices whose error exceeds 2 mm after denoising (all scans).
     pub over_2mm: usize,
+    /// Largest distance of a vertex to the clean twin's surface, mm (`None` in the k sweeps,
+    /// which do not measure it).
+    pub max_surface_mm: Option<f64>,
+    /// Vertices more than 2 mm from the clean twin's surface (all scans).
+    pub over_2mm_surface: Option<usize>,
     pub rmse_non_spike_mm: f64,
     pub shrinkage_mm: f64,
     pub clean_rmse_mm: f64,
@@ -74,6 +116,10 @@ struct Acc {
     sse: f64,
     max: f64,
     over_2mm: usize,
+    /// Measure surface distances (the sweeps, which only pick k by RMSE, do not).
+    surface: bool,
+    max_surface: f64,
+    over_2mm_surface: usize,
     n_smooth: usize,
     sse_smooth: f64,
     along_normal: f64,
@@ -89,12 +135,23 @@ struct Acc {
 }
 
 impl Acc {
+    fn with_surface() -> Self {
+        Acc {
+            surface: true,
+            ..Acc::default()
+        }
+    }
+
     /// `out[j]` is the output position of input vertex `kept[j]`.
     fn add_noisy(&mut self, pair: &ScanPair, out: &[DVec3], kept: &[u32]) {
         let spikes_in = pair.is_spike.iter().filter(|&&s| s).count();
         let spikes_kept = kept.iter().filter(|&&i| pair.is_spike[i as usize]).count();
         self.removed_spikes += spikes_in - spikes_kept;
         self.removed_non_spike += (pair.is_spike.len() - kept.len()) - (spikes_in - spikes_kept);
+        // The surface distance is at most the error, so only vertices more than 2 mm off
+        // their twin, or further off than the largest surface distance so far, are measured,
+        // worst first.
+        let mut candidates = Vec::new();
         for (p, &i) in out.iter().zip(kept) {
             let i = i as usize;
             let c = pair.to_clean[i] as usize;
@@ -103,11 +160,23 @@ impl Acc {
             self.sse += e * e;
             self.max = self.max.max(e);
             self.over_2mm += usize::from(e > 2.0);
+            if self.surface && e > self.max_surface.min(2.0) {
+                candidates.push((e, *p));
+            }
             if !pair.is_spike[i] {
                 self.n_smooth += 1;
                 self.sse_smooth += e * e;
                 self.along_normal += (*p - pair.noisy.positions_mm[i]).dot(pair.clean.normals[c]);
             }
+        }
+        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (e, p) in candidates {
+            if e <= 2.0 && e <= self.max_surface {
+                break;
+            }
+            let d = pair.surface_distance(p, e);
+            self.over_2mm_surface += usize::from(d > 2.0);
+            self.max_surface = self.max_surface.max(d);
         }
     }
 
@@ -136,6 +205,8 @@ impl Acc {
             rmse_mm: div(self.sse, self.n).sqrt(),
             max_mm: self.max,
             over_2mm: self.over_2mm,
+            max_surface_mm: self.surface.then_some(self.max_surface),
+            over_2mm_surface: self.surface.then_some(self.over_2mm_surface),
             rmse_non_spike_mm: div(self.sse_smooth, self.n_smooth).sqrt(),
             shrinkage_mm: -div(self.along_normal, self.n_smooth),
             clean_rmse_mm: div(self.clean_sse, self.clean_n).sqrt(),
@@ -225,13 +296,13 @@ pub fn load_pair(noisy_dir: &Path, clean_dir: &Path, stem: &str) -> Result<ScanP
             }
         }
     }
-    Ok(ScanPair {
-        name: stem.to_string(),
+    Ok(ScanPair::new(
+        stem.to_string(),
         noisy,
         clean,
         to_clean,
         is_spike,
-    })
+    ))
 }
 
 /// Grid cell (row-major) of a printed vertex position, if it lies on the grid (the files
@@ -250,7 +321,7 @@ fn grid_cell(g: &TruthGrid, p: DVec3) -> Option<usize> {
 
 /// The noisy input's scores (nothing run).
 pub fn input_score(pairs: &[ScanPair]) -> MethodScore {
-    let mut acc = Acc::default();
+    let mut acc = Acc::with_surface();
     for pair in pairs {
         let all: Vec<u32> = (0..pair.noisy.vertex_count() as u32).collect();
         acc.add_noisy(pair, &pair.noisy.positions_mm, &all);
@@ -266,7 +337,7 @@ pub fn score_method(
     label: &str,
     params: &DenoiseParams,
 ) -> Result<MethodScore> {
-    let mut acc = Acc::default();
+    let mut acc = Acc::with_surface();
     for pair in pairs {
         let mut mesh = pair.noisy.clone();
         let start = Instant::now();
@@ -333,6 +404,8 @@ pub struct VertexError {
     pub scan: String,
     pub vertex: usize,
     pub error_mm: f64,
+    /// Distance to the clean twin's surface, mm (see the module docs).
+    pub surface_mm: f64,
     /// Signed z error (output − clean), mm.
     pub dz_mm: f64,
     /// Whether an injected spike sits on this vertex.
@@ -363,6 +436,7 @@ pub fn vertices_over(
                     scan: pair.name.clone(),
                     vertex: i,
                     error_mm: e,
+                    surface_mm: pair.surface_distance(*p, e),
                     dz_mm: p.z - c.z,
                     spike: pair.is_spike[i],
                     boundary: topology.is_boundary[i],
@@ -383,17 +457,21 @@ pub fn best_k(sweep: &[MethodScore]) -> Option<&MethodScore> {
 /// A Markdown table of scores.
 pub fn markdown_table(scores: &[MethodScore]) -> String {
     let mut s = String::from(
-        "| method | k | RMSE mm | max mm | >2 mm | RMSE non-spike mm | shrinkage mm | clean RMSE mm | removed: spikes / other / of clean twins | iters run | moved | ms/scan |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| method | k | RMSE mm | max mm | >2 mm | to surface: max mm / >2 mm | RMSE non-spike mm | shrinkage mm | clean RMSE mm | removed: spikes / other / of clean twins | iters run | moved | ms/scan |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in scores {
         s += &format!(
-            "| {} | {} | {:.3} | {:.2} | {} | {:.3} | {:+.4} | {:.4} | {} / {} / {} | {:.1} | {:.0} | {:.2} |\n",
+            "| {} | {} | {:.3} | {:.2} | {} | {} | {:.3} | {:+.4} | {:.4} | {} / {} / {} | {:.1} | {:.0} | {:.2} |\n",
             m.label,
             m.k,
             m.rmse_mm,
             m.max_mm,
             m.over_2mm,
+            match (m.max_surface_mm, m.over_2mm_surface) {
+                (Some(max), Some(n)) => format!("{max:.2} / {n}"),
+                _ => "–".into(),
+            },
             m.rmse_non_spike_mm,
             m.shrinkage_mm,
             m.clean_rmse_mm,
@@ -461,4 +539,42 @@ pub fn benchmark(pairs: &[ScanPair], k_max: usize) -> Result<Benchmark> {
         laplacian_sweep,
         taubin_sweep,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A vertex slid along a plane is off its twin but on the surface; one lifted off it is
+    /// as far from the surface as from its twin.
+    #[test]
+    fn surface_distance_tells_sliding_along_the_surface_from_leaving_it() {
+        let clean = super::super::tests::grid(11, 11, |_, _| 0.0);
+        let mut noisy = clean.clone();
+        let (slid, lifted) = (3 * 11 + 3, 7 * 11 + 7);
+        noisy.positions_mm[slid].x += 3.0;
+        noisy.positions_mm[lifted].z += 2.5;
+        let n = noisy.vertex_count();
+        let pair = ScanPair::new(
+            "plane".into(),
+            noisy,
+            clean,
+            (0..n as u32).collect(),
+            vec![false; n],
+        );
+        let s = input_score(std::slice::from_ref(&pair));
+        assert_eq!(s.over_2mm, 2);
+        assert!((s.max_mm - 3.0).abs() < 1e-12, "{s:?}");
+        assert_eq!(s.over_2mm_surface, Some(1));
+        assert!((s.max_surface_mm.unwrap() - 2.5).abs() < 1e-9, "{s:?}");
+        // The sweeps leave it unmeasured rather than 0.
+        let sweep = sweep_iterations(
+            std::slice::from_ref(&pair),
+            "laplacian",
+            &DenoiseParams::baseline(DenoiseMethod::Laplacian, 2),
+            2,
+        )
+        .unwrap();
+        assert!(sweep.iter().all(|m| m.max_surface_mm.is_none()));
+    }
 }
