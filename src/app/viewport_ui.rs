@@ -558,7 +558,9 @@ fn brush_outline(app: &EditorApp, painter: &egui::Painter, response: &egui::Resp
 }
 
 fn interact(app: &mut EditorApp, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
-    let erasing = app.erasing && erase_brush(app, response, rect);
+    // Shift + drag orbits with the brush on.
+    let shift = ui.input(|i| i.modifiers.shift);
+    let erasing = app.erasing && !shift && erase_brush(app, response, rect);
     // Dragging a landmark marker moves the point over the surface; anywhere else a primary
     // drag orbits (in erase mode it erases).
     if !app.erasing

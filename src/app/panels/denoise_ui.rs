@@ -78,7 +78,7 @@ fn erase_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     ui.horizontal(|ui| {
         ui.add_enabled_ui(has_scan, |ui| {
             ui.toggle_value(&mut app.erasing, "Erase brush")
-                .on_hover_text("click or drag on the scan to erase; Esc ends (orbit needs it off)");
+                .on_hover_text("click or drag on the scan to erase; Shift + drag orbits; Esc ends");
         });
         ui.add(
             egui::Slider::new(&mut app.erase_radius_mm, 0.5..=30.0)
