@@ -447,14 +447,6 @@ impl DenoiseReport {
             kept,
         }
     }
-
-    /// Per output vertex: its displacement, mm (the heat map of the denoised mesh).
-    pub fn output_displacement_mm(&self) -> Vec<f64> {
-        self.kept
-            .iter()
-            .map(|&v| self.displacement_mm[v as usize])
-            .collect()
-    }
 }
 
 /// Denoises `mesh` in place (positions and normals) and reports what moved.

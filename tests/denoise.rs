@@ -3,29 +3,12 @@
 
 mod common;
 
+use common::grid;
+
 use facesynth::Mesh;
 use facesynth::denoise::{BoundaryRule, DenoiseMethod, DenoiseParams, MoveRule, denoise, eval};
 use glam::DVec3;
 use std::path::PathBuf;
-
-/// `nx × ny` vertex grid of quads, spacing 1 mm, z = f(x, y).
-fn grid(nx: u32, ny: u32, f: impl Fn(f64, f64) -> f64) -> Mesh {
-    let mut p = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            let (x, y) = (i as f64, j as f64);
-            p.push(DVec3::new(x, y, f(x, y)));
-        }
-    }
-    let mut faces = Vec::new();
-    for j in 0..ny - 1 {
-        for i in 0..nx - 1 {
-            let v = j * nx + i;
-            faces.push([v, v + 1, v + 1 + nx, v + nx]);
-        }
-    }
-    Mesh::from_faces(p, faces)
-}
 
 /// Deterministic pseudo-random numbers (xorshift), uniform in [0, 1).
 struct Rng(u64);

@@ -141,25 +141,26 @@ fn registering_the_generic_face_to_itself_lands_on_the_surface_and_goes_stale_on
     assert!(doc.registration_stale());
 }
 
-/// A flat `n × n`-quad grid of 1 mm spacing in z = 0 centred on the origin, with one spike
-/// of `spike_mm` at (-10, -10).
-fn grid_with_spike(n: u32, spike_mm: f64) -> facesynth::Mesh {
-    let id = |i: u32, j: u32| i + (n + 1) * j;
+/// A document with a flat `n × n`-quad grid of 1 mm spacing in z = 0 centred on the origin
+/// open (written as OBJ into the returned folder), with one spike of `spike_mm` at (-10, -10).
+fn open_grid(n: u32, spike_mm: f64) -> (tempfile::TempDir, Document) {
     let h = (n / 2) as f64;
-    let positions = (0..=n)
-        .flat_map(|j| (0..=n).map(move |i| DVec3::new(i as f64 - h, j as f64 - h, 0.0)))
-        .map(|p| {
-            if p.x == -10.0 && p.y == -10.0 {
-                p + DVec3::Z * spike_mm
-            } else {
-                p
-            }
-        })
-        .collect();
-    let faces: Vec<[u32; 4]> = (0..n)
-        .flat_map(|j| (0..n).map(move |i| [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]))
-        .collect();
-    facesynth::Mesh::from_faces(positions, faces)
+    let mut grid = common::grid(n + 1, n + 1, |x, y| {
+        if (x - h, y - h) == (-10.0, -10.0) {
+            spike_mm
+        } else {
+            0.0
+        }
+    });
+    for p in &mut grid.positions_mm {
+        *p -= DVec3::new(h, h, 0.0);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scan_path = dir.path().join("grid.obj");
+    facesynth::io::write_mesh(&scan_path, &grid).unwrap();
+    let mut doc = Document::new(generic_face::build());
+    apply(&mut doc, Command::Open(Some(scan_path)));
+    (dir, doc)
 }
 
 /// The working scan's vertices are the scan's (or the denoised scan's) less the erased ones,
@@ -200,11 +201,7 @@ fn check_working(doc: &Document) {
 #[test]
 fn erasing_by_hand_removes_the_brushed_vertices_one_undo_step_per_stroke_and_saves_the_scan() {
     use facesynth::app::document::Part;
-    let dir = tempfile::tempdir().unwrap();
-    let scan_path = dir.path().join("grid.obj");
-    facesynth::io::write_mesh(&scan_path, &grid_with_spike(40, 25.0)).unwrap();
-    let mut doc = Document::new(generic_face::build());
-    apply(&mut doc, Command::Open(Some(scan_path)));
+    let (dir, mut doc) = open_grid(40, 25.0);
     let n = doc.scan.as_ref().unwrap().mesh.vertex_count();
     assert_eq!(n, 41 * 41);
     assert!(!doc.is_dirty());
@@ -302,11 +299,7 @@ fn erasing_by_hand_removes_the_brushed_vertices_one_undo_step_per_stroke_and_sav
 
 #[test]
 fn erasing_every_corner_but_one_of_a_face_takes_the_stranded_vertex_too() {
-    let dir = tempfile::tempdir().unwrap();
-    let scan_path = dir.path().join("grid.obj");
-    facesynth::io::write_mesh(&scan_path, &grid_with_spike(4, 0.0)).unwrap();
-    let mut doc = Document::new(generic_face::build());
-    apply(&mut doc, Command::Open(Some(scan_path)));
+    let (_dir, mut doc) = open_grid(4, 0.0);
     // The corner (-2, -2) is in one quad only; erasing its three neighbours there strands it.
     apply(&mut doc, Command::Checkpoint);
     for centre in [(-1.0, -2.0), (-2.0, -1.0), (-1.0, -1.0)] {

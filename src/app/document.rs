@@ -479,28 +479,14 @@ impl Document {
             None => (&scan.mesh, (0..scan.mesh.vertex_count() as u32).collect()),
         };
         let erased = &self.edits.erased;
-        let keep: Vec<bool> = ids.iter().map(|v| !erased.contains(v)).collect();
-        let (mesh, input_ids) = if keep.iter().all(|&k| k) {
+        let mut removed: Vec<bool> = ids.iter().map(|v| erased.contains(v)).collect();
+        let (mesh, input_ids) = if !removed.contains(&true) {
             (base.clone(), ids)
         } else {
             // A vertex whose faces were all erased goes too (a stray point would otherwise
             // stay behind in the saved scan); points the scan had without faces stay.
-            let mut keep = keep;
-            let in_face = |m: &Mesh, keep: &[bool]| {
-                let mut used = vec![false; m.vertex_count()];
-                for f in m.faces.iter() {
-                    if f.iter().filter(|&&v| keep[v as usize]).count() >= 3 {
-                        f.iter().for_each(|&v| used[v as usize] = true);
-                    }
-                }
-                used
-            };
-            let all = vec![true; keep.len()];
-            let before = in_face(base, &all);
-            let after = in_face(base, &keep);
-            for (k, (b, a)) in keep.iter_mut().zip(before.iter().zip(&after)) {
-                *k &= !*b || *a;
-            }
+            crate::denoise::removal::add_orphans(&base.faces, &mut removed);
+            let keep: Vec<bool> = removed.iter().map(|r| !r).collect();
             let mut mesh = (**base).clone();
             let kept = mesh.retain_vertices(&keep);
             let input_ids = kept.iter().map(|&v| ids[v as usize]).collect();
@@ -570,7 +556,6 @@ impl Document {
                     self.saved.erased.clear();
                     self.rebuild_working();
                     self.history.clear();
-                    self.version += 1;
                     if self.fem.as_ref().is_some_and(|f| f.surface_id != 0) {
                         self.fem_job()
                     } else {
@@ -1051,14 +1036,15 @@ impl Document {
             | JobResult::Fem(Err(e))
             | JobResult::Detected(Err(e))
             | JobResult::Fitted(Err(e)) => {
+                let restoring = what == "loading" && self.pending_restore.take().is_some();
                 if what == "loading" {
                     self.pending_denoise = None;
                 }
-                if what == "loading" && self.pending_restore.take().is_some() {
-                    self.error = Some(format!("autosave not restored: {e}"));
+                self.error = Some(if restoring {
+                    format!("autosave not restored: {e}")
                 } else {
-                    self.error = Some(e);
-                }
+                    e
+                });
             }
         }
         if self.fem_dirty {

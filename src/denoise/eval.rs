@@ -73,7 +73,7 @@ impl ScanPair {
         let index = self
             .clean_surface
             .get_or_init(|| SurfaceIndex::new(&self.clean, 4.0));
-        index.distance(p, bound_mm).min(bound_mm)
+        index.distance(p, bound_mm)
     }
 }
 

@@ -485,7 +485,7 @@ fn repairs_beside_removals(
 /// corners that are not removed and goes when fewer than 3 are left (as
 /// [`crate::mesh::Mesh::retain_vertices`] does), so a rim tip whose only face lost a corner
 /// goes too.
-pub(super) fn add_orphans(faces: &Polygons, removed: &mut [bool]) {
+pub(crate) fn add_orphans(faces: &Polygons, removed: &mut [bool]) {
     let mut used_before = vec![false; removed.len()];
     let mut used_after = vec![false; removed.len()];
     for f in faces.iter() {

@@ -73,3 +73,22 @@ pub fn cli_error(args: &[&std::ffi::OsStr]) -> String {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     err
 }
+
+/// `nx × ny` vertex grid of quads, spacing 1 mm, z = f(x, y).
+pub fn grid(nx: u32, ny: u32, f: impl Fn(f64, f64) -> f64) -> facesynth::Mesh {
+    let mut p = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let (x, y) = (i as f64, j as f64);
+            p.push(glam::DVec3::new(x, y, f(x, y)));
+        }
+    }
+    let mut faces = Vec::new();
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let v = j * nx + i;
+            faces.push([v, v + 1, v + 1 + nx, v + nx]);
+        }
+    }
+    facesynth::Mesh::from_faces(p, faces)
+}
