@@ -86,6 +86,10 @@ pub enum Command {
         /// threshold per connected region, see `denoise::MoveRule`).
         #[arg(long)]
         paper: bool,
+        /// A vertex the filter moved further than this (mm) is removed instead of kept where
+        /// it was put (`inf` keeps every repair). Default filter only.
+        #[arg(long, default_value_t = 3.0)]
+        repair_max_mm: f64,
     },
     /// Score the denoisers against ground truth: noisy synth_gavab scans and their `--clean`
     /// twins (same seed). Prints the benchmark table (input, paper, default, baselines at
@@ -499,12 +503,14 @@ pub fn run(cli: Cli) -> Result<()> {
             iterations,
             w,
             paper,
+            repair_max_mm,
         }) => {
             let mut mesh = io::read_mesh(&input)?;
             let params = denoise::DenoiseParams {
                 method,
                 iterations,
                 w,
+                repair_max_mm,
                 ..if paper {
                     denoise::DenoiseParams::paper()
                 } else {

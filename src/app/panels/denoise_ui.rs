@@ -25,6 +25,14 @@ pub fn denoise_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         p.method == DenoiseMethod::MedianLaplacian,
         egui::Slider::new(&mut p.w, 0.05..=1.0).text("change fraction w"),
     );
+    ui.add_enabled(
+        p.method == DenoiseMethod::MedianLaplacian && p.remove_unrepairable,
+        egui::Slider::new(&mut p.repair_max_mm, 1.0..=50.0)
+            .logarithmic(true)
+            .suffix(" mm")
+            .text("largest repair"),
+    )
+    .on_hover_text("a vertex the filter would move further than this is removed instead");
     ui.horizontal(|ui| {
         let can_run = app.doc.scan.is_some() && !app.doc.busy();
         if ui.add_enabled(can_run, egui::Button::new("Run")).clicked() {
