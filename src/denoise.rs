@@ -1173,6 +1173,22 @@ impl QuadricFit {
         (z >= lo - span - 1.0 && z <= hi + span + 1.0).then_some(p.z + z)
     }
 
+    /// The fitted height at `p`: [`Self::predict_smooth`] where the ring is smooth, else
+    /// [`Self::predict`]'s.
+    fn height(
+        &mut self,
+        positions: &[DVec3],
+        p: DVec3,
+        ring: &[u32],
+        use_point: impl Fn(usize) -> bool + Copy,
+    ) -> Option<f64> {
+        self.predict_smooth(positions, p, ring, use_point)
+            .or_else(|| {
+                self.predict(positions, p, ring, use_point)
+                    .map(|(z, _, _)| z)
+            })
+    }
+
     /// The fitted height at `p`, the robust residual scale σ̂ of the kept ring points and the
     /// ring's roughness on the scale of the change (see [`RING_ROUGHNESS_RATIO`]), or `None`
     /// when the ring cannot support a fit.

@@ -39,17 +39,21 @@ fn all_variants() -> Vec<(&'static str, DenoiseParams)> {
     ]
 }
 
+/// The default filter with every repair kept (no repair removed as over `repair_max_mm`).
+fn repairing() -> DenoiseParams {
+    DenoiseParams {
+        repair_max_mm: f64::INFINITY,
+        ..DenoiseParams::default()
+    }
+}
+
 #[test]
 fn plane_spike_is_removed_and_the_rest_is_untouched() {
     let nx = 12;
     let spike = 5 * nx + 6;
     // The default's filter, with every repair kept, and the paper's.
-    let repairing = DenoiseParams {
-        repair_max_mm: f64::INFINITY,
-        ..DenoiseParams::default()
-    };
     for (name, params) in [
-        ("default filter", repairing),
+        ("default filter", repairing()),
         ("paper", DenoiseParams::paper()),
     ] {
         let mut m = grid(nx, 10, |_, _| 0.0);
@@ -250,12 +254,8 @@ fn a_lifted_real_pit_is_removed_not_kept_as_a_guess() {
     let pit = 10 * 21 + 9;
     let mut clean = grid(21, 21, dome);
     clean.positions_mm[pit].z -= 4.0;
-    let repairing = DenoiseParams {
-        repair_max_mm: f64::INFINITY,
-        ..DenoiseParams::default()
-    };
     let mut lifted = clean.clone();
-    let r = denoise(&mut lifted, &repairing).unwrap();
+    let r = denoise(&mut lifted, &repairing()).unwrap();
     assert!(r.removed.is_empty(), "{:?}", r.removed);
     let guess_mm = lifted.positions_mm[pit].z - clean.positions_mm[pit].z;
     assert!(guess_mm > 3.0, "lifted {guess_mm} mm");
@@ -384,11 +384,7 @@ fn paper_rule_needs_an_iteration_per_spike_per_region_does_not() {
     assert_eq!((r.iterations_run, r.vertices_moved), (8, 8));
     assert!(paper.positions_mm.iter().all(|p| p.z.abs() < 1e-12));
     let mut region = m.clone();
-    let params = DenoiseParams {
-        repair_max_mm: f64::INFINITY,
-        ..DenoiseParams::default()
-    };
-    let r = denoise(&mut region, &params).unwrap();
+    let r = denoise(&mut region, &repairing()).unwrap();
     assert!(region.positions_mm.iter().all(|p| p.z.abs() < 1e-12));
     assert_eq!((r.iterations_run, r.vertices_moved), (1, 8));
 }

@@ -350,20 +350,21 @@ pub(super) fn unrepairable(
 /// Test 6 of the module docs: pieces of at most [`ISLAND_MAX_VERTICES`] kept vertices that
 /// the removals left joined to nothing else go too (not when no larger piece is left).
 fn leftover_fragments(topology: &Topology, removed: &mut [bool]) {
+    // Removed vertices are pieces of one, which never decide the limit.
     let kept = pieces(topology, |v, u| !removed[v] && !removed[u]);
-    let size = |v: usize| kept.size[kept.label[v] as usize];
-    let largest = (0..removed.len())
-        .filter(|&v| !removed[v])
-        .map(size)
-        .max()
-        .unwrap_or(0);
-    if largest > ISLAND_MAX_VERTICES {
-        let small: Vec<usize> = (0..removed.len())
-            .filter(|&v| !removed[v] && size(v) <= ISLAND_MAX_VERTICES)
-            .collect();
-        for v in small {
-            removed[v] = true;
-        }
+    let limit = island_limit(&kept);
+    for (v, r) in removed.iter_mut().enumerate() {
+        *r |= kept.size[kept.label[v] as usize] <= limit;
+    }
+}
+
+/// The largest fragment removed whatever its depth: [`ISLAND_MAX_VERTICES`], or 0 where no
+/// piece is larger (a mesh that is all fragments, such as a test triangle, is not emptied).
+fn island_limit(p: &Pieces) -> usize {
+    if p.size.iter().any(|&s| s > ISLAND_MAX_VERTICES) {
+        ISLAND_MAX_VERTICES
+    } else {
+        0
     }
 }
 
@@ -399,43 +400,22 @@ fn fit_residual(
     fit: &mut QuadricFit,
     scratch: &mut Scratch,
 ) -> f64 {
-    let near = ring_residual(positions, topology, rings3, v, removed, fit, scratch);
+    let p = positions[v];
+    let keep = |u: usize| !removed[u];
+    let estimate = fit.height(positions, p, rings3.of(v), keep).or_else(|| {
+        topology.k_ring(v, FALLBACK_RINGS, &mut scratch.seen, &mut scratch.wide);
+        fit.predict(positions, p, &scratch.wide, keep)
+            .map(|(z, _, _)| z)
+    });
+    // No fit at all (a tiny island): nothing to judge it by, so it stays.
+    let near = estimate.map_or(0.0, |z| p.z - z);
     if !topology.is_boundary[v] || near.abs() > CLUSTER_SEED_MIN_RESIDUAL_MM {
         return near;
     }
-    let p = positions[v];
-    let keep = |u: usize| !removed[u];
     topology.k_ring(v, RIM_FIT_RINGS, &mut scratch.seen, &mut scratch.wide);
-    let ring = std::mem::take(&mut scratch.wide);
-    let wide = fit
-        .predict_smooth(positions, p, &ring, keep)
-        .or_else(|| fit.predict(positions, p, &ring, keep).map(|(z, _, _)| z));
-    scratch.wide = ring;
     let t = scratch.residual_mm;
-    wide.map_or(near, |z| (p.z - z) * t / (t + RIM_FIT_MARGIN_MM))
-}
-
-/// [`fit_residual`] from the kept 3-ring alone.
-fn ring_residual(
-    positions: &[DVec3],
-    topology: &Topology,
-    rings3: &Rings,
-    v: usize,
-    removed: &[bool],
-    fit: &mut QuadricFit,
-    scratch: &mut Scratch,
-) -> f64 {
-    let p = positions[v];
-    let keep = |u: usize| !removed[u];
-    if let Some(z) = fit.predict_smooth(positions, p, rings3.of(v), keep) {
-        return p.z - z;
-    }
-    let estimate = fit.predict(positions, p, rings3.of(v), keep).or_else(|| {
-        topology.k_ring(v, FALLBACK_RINGS, &mut scratch.seen, &mut scratch.wide);
-        fit.predict(positions, p, &scratch.wide, keep)
-    });
-    // No fit at all (a tiny island): nothing to judge it by, so it stays.
-    estimate.map_or(0.0, |(z, _, _)| p.z - z)
+    fit.height(positions, p, &scratch.wide, keep)
+        .map_or(near, |z| (p.z - z) * t / (t + RIM_FIT_MARGIN_MM))
 }
 
 /// Test 2's second look: the `candidates` (peeled vertices) that the kept surface around
@@ -605,13 +585,7 @@ pub fn jump_pieces(positions: &[DVec3], topology: &Topology) -> Vec<bool> {
         (positions[u].z - positions[v].z).abs() <= JUMP_MM
             && bend_mm(positions, topology, v, u) <= BEND_MM
     });
-    // A mesh that is all fragments (a test triangle) is left to the later steps to judge.
-    let largest = whole.size.iter().copied().max().unwrap_or(0);
-    let island_max = if largest > ISLAND_MAX_VERTICES {
-        ISLAND_MAX_VERTICES
-    } else {
-        0
-    };
+    let island_max = island_limit(&whole);
     (0..positions.len())
         .map(|v| {
             let small = cut.size[cut.label[v] as usize];
