@@ -1102,6 +1102,9 @@ struct QuadricFit {
     /// Least-squares weights (1 = plain least squares; the L1 reweighting changes them).
     weight: Vec<f64>,
     res: Vec<f64>,
+    /// The consensus fit's subsets for a ring of `n` points, at index `n`: the pseudo-random
+    /// sequence depends on `n` alone, so each is drawn once per fit object.
+    subsets: Vec<Vec<[u32; QUADRIC_MIN_POINTS]>>,
 }
 
 /// Fewest ring points for a quadric fit (6 unknowns) and for a plane fit (3 unknowns).
@@ -1276,28 +1279,29 @@ impl QuadricFit {
         if n < 2 * QUADRIC_MIN_POINTS {
             return None;
         }
-        let mut state: u64 = 0x9E37_79B9_7F4A_7C15 ^ n as u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        if self.subsets.len() <= n {
+            self.subsets.resize(n + 1, Vec::new());
+        }
+        if self.subsets[n].is_empty() {
+            self.subsets[n] = consensus_subsets(n);
+        }
         let mut best: Option<(usize, [f64; 6])> = None;
-        for _ in 0..CONSENSUS_TRIALS {
-            self.keep.fill(false);
-            let mut chosen = 0;
-            while chosen < QUADRIC_MIN_POINTS {
-                let i = (next() % n as u64) as usize;
-                if !self.keep[i] {
-                    self.keep[i] = true;
-                    chosen += 1;
-                }
-            }
-            let Some(c) = self.solve_terms::<6>() else {
+        for subset in &self.subsets[n] {
+            let Some(c) = fit_terms::<6>(subset.iter().map(|&i| (self.pts[i as usize], 1.0)))
+            else {
                 continue;
             };
-            let count = self.inliers(&c);
+            // Only a count above the best so far matters: stop once it cannot get there.
+            let need = best.map_or(0, |(b, _)| b);
+            let mut count = 0;
+            for (seen, q) in self.pts.iter().enumerate() {
+                if count + (n - seen) <= need {
+                    break;
+                }
+                if (q.z - eval_quadric(&c, q.x, q.y)).abs() < CONSENSUS_TOLERANCE_MM {
+                    count += 1;
+                }
+            }
             if best.is_none_or(|(b, _)| count > b) {
                 best = Some((count, c));
             }
@@ -1354,89 +1358,128 @@ impl QuadricFit {
         None
     }
 
-    /// Normal equations for the first `K` terms of `[1, x, y, x², xy, y²]`, in coordinates
-    /// scaled by the ring's RMS radius; `None` if (nearly) singular.
+    /// [`fit_terms`] over the kept points with their weights.
     fn solve_terms<const K: usize>(&self) -> Option<[f64; K]> {
-        let (mut r2, mut n) = (0.0, 0.0);
-        for (q, k) in self.pts.iter().zip(&self.keep) {
-            if *k {
-                r2 += q.x * q.x + q.y * q.y;
-                n += 1.0;
-            }
-        }
-        let scale = (r2 / n).sqrt();
-        if !(scale > 1e-9) {
-            return None;
-        }
-        // Upper triangle of AᵀWA and AᵀWz, then an in-place Cholesky: this runs ~10⁵ times
-        // per scan (L1 rounds, consensus trials), so it avoids generic matrix temporaries.
-        let mut ata = [[0.0f64; K]; K];
-        let mut atb = [0.0f64; K];
-        for ((q, k), w) in self.pts.iter().zip(&self.keep).zip(&self.weight) {
-            if !*k {
-                continue;
-            }
-            let (x, y) = (q.x / scale, q.y / scale);
-            let all = quadric_terms(x, y);
-            for i in 0..K {
-                let wi = *w * all[i];
-                for j in i..K {
-                    ata[i][j] += wi * all[j];
-                }
-                atb[i] += wi * q.z;
-            }
-        }
-        // Cholesky A = LLᵀ, L stored in the lower triangle (row i, column j ≤ i).
-        let mut l = [[0.0f64; K]; K];
-        for j in 0..K {
-            let mut d = ata[j][j];
-            for m in 0..j {
-                d -= l[j][m] * l[j][m];
-            }
-            if !(d > 0.0) {
-                return None;
-            }
-            let d = d.sqrt();
-            l[j][j] = d;
-            for i in j + 1..K {
-                let mut s = ata[j][i];
-                for m in 0..j {
-                    s -= l[i][m] * l[j][m];
-                }
-                l[i][j] = s / d;
-            }
-        }
-        let (dmin, dmax) = (0..K).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
-            (lo.min(l[i][i]), hi.max(l[i][i]))
-        });
-        // Diagonal of the factor ~ singular values' square roots: reject condition > ~1e8.
-        if !(dmin > 1e-4 * dmax) {
-            return None;
-        }
-        // Forward (L u = b) then back (Lᵀ c = u) substitution.
-        let mut c = atb;
-        for i in 0..K {
-            for m in 0..i {
-                c[i] -= l[i][m] * c[m];
-            }
-            c[i] /= l[i][i];
-        }
-        for i in (0..K).rev() {
-            for m in i + 1..K {
-                c[i] -= l[m][i] * c[m];
-            }
-            c[i] /= l[i][i];
-        }
-        let unscale = [
-            1.0,
-            1.0 / scale,
-            1.0 / scale,
-            1.0 / (scale * scale),
-            1.0 / (scale * scale),
-            1.0 / (scale * scale),
-        ];
-        Some(std::array::from_fn(|i| c[i] * unscale[i]))
+        fit_terms::<K>(
+            self.pts
+                .iter()
+                .zip(&self.keep)
+                .zip(&self.weight)
+                .filter(|((_, k), _)| **k)
+                .map(|((q, _), w)| (*q, *w)),
+        )
     }
+}
+
+/// [`CONSENSUS_TRIALS`] distinct-index subsets of [`QUADRIC_MIN_POINTS`] ring points out of
+/// `n`, each in ring order (a fixed xorshift sequence seeded by `n`, so runs repeat).
+fn consensus_subsets(n: usize) -> Vec<[u32; QUADRIC_MIN_POINTS]> {
+    let mut state: u64 = 0x9E37_79B9_7F4A_7C15 ^ n as u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    (0..CONSENSUS_TRIALS)
+        .map(|_| {
+            let mut subset = [0u32; QUADRIC_MIN_POINTS];
+            let mut chosen = 0;
+            while chosen < QUADRIC_MIN_POINTS {
+                let i = (next() % n as u64) as u32;
+                if !subset[..chosen].contains(&i) {
+                    subset[chosen] = i;
+                    chosen += 1;
+                }
+            }
+            // Ring order, as a mask over the ring would visit them, so the sums are the
+            // same; an index list spares a mispredicted branch per ring point.
+            subset.sort_unstable();
+            subset
+        })
+        .collect()
+}
+
+/// Weighted least squares for the first `K` terms of `[1, x, y, x², xy, y²]` through points
+/// (x, y, z) with weights, in coordinates scaled by the points' RMS radius; `None` if
+/// (nearly) singular.
+fn fit_terms<const K: usize>(
+    points: impl Iterator<Item = (DVec3, f64)> + Clone,
+) -> Option<[f64; K]> {
+    let (mut r2, mut n) = (0.0, 0.0);
+    for (q, _) in points.clone() {
+        r2 += q.x * q.x + q.y * q.y;
+        n += 1.0;
+    }
+    let scale = (r2 / n).sqrt();
+    if !(scale > 1e-9) {
+        return None;
+    }
+    // Upper triangle of AᵀWA and AᵀWz, then an in-place Cholesky: this runs ~10⁵ times
+    // per scan (L1 rounds, consensus trials), so it avoids generic matrix temporaries.
+    let mut ata = [[0.0f64; K]; K];
+    let mut atb = [0.0f64; K];
+    for (q, w) in points {
+        let (x, y) = (q.x / scale, q.y / scale);
+        let all = quadric_terms(x, y);
+        for i in 0..K {
+            let wi = w * all[i];
+            for j in i..K {
+                ata[i][j] += wi * all[j];
+            }
+            atb[i] += wi * q.z;
+        }
+    }
+    // Cholesky A = LLᵀ, L stored in the lower triangle (row i, column j ≤ i).
+    let mut l = [[0.0f64; K]; K];
+    for j in 0..K {
+        let mut d = ata[j][j];
+        for m in 0..j {
+            d -= l[j][m] * l[j][m];
+        }
+        if !(d > 0.0) {
+            return None;
+        }
+        let d = d.sqrt();
+        l[j][j] = d;
+        for i in j + 1..K {
+            let mut s = ata[j][i];
+            for m in 0..j {
+                s -= l[i][m] * l[j][m];
+            }
+            l[i][j] = s / d;
+        }
+    }
+    let (dmin, dmax) = (0..K).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
+        (lo.min(l[i][i]), hi.max(l[i][i]))
+    });
+    // Diagonal of the factor ~ singular values' square roots: reject condition > ~1e8.
+    if !(dmin > 1e-4 * dmax) {
+        return None;
+    }
+    // Forward (L u = b) then back (Lᵀ c = u) substitution.
+    let mut c = atb;
+    for i in 0..K {
+        for m in 0..i {
+            c[i] -= l[i][m] * c[m];
+        }
+        c[i] /= l[i][i];
+    }
+    for i in (0..K).rev() {
+        for m in i + 1..K {
+            c[i] -= l[m][i] * c[m];
+        }
+        c[i] /= l[i][i];
+    }
+    let unscale = [
+        1.0,
+        1.0 / scale,
+        1.0 / scale,
+        1.0 / (scale * scale),
+        1.0 / (scale * scale),
+        1.0 / (scale * scale),
+    ];
+    Some(std::array::from_fn(|i| c[i] * unscale[i]))
 }
 
 /// Points of a vertex's 3-ring within this distance (mm, along z) of a plane through the
