@@ -297,6 +297,31 @@ fn a_step_edge_is_not_taken_for_a_spike() {
 }
 
 #[test]
+fn a_spike_in_a_slot_is_removed_though_it_shares_a_plane_with_one_wall() {
+    // A 3-row slot 4 mm deep (a closed lid's fissure at the grid scale) with its middle
+    // vertex pushed 4.5 mm further down: a plane through it meets 8 of its 24 ring points
+    // (the row beside it and the wall beyond), all on one side, so the step-edge test
+    // alone would keep it; the plane's support must reach round it (150°).
+    let slot = |_x: f64, y: f64| if (7.0..=9.0).contains(&y) { 0.0 } else { 4.0 };
+    let mut m = grid(16, 16, slot);
+    let spike = (8 * 16 + 8) as usize;
+    m.positions_mm[spike].z = -4.5;
+    let r = denoise(&mut m, &DenoiseParams::default()).unwrap();
+    assert!(r.removed.contains(&(spike as u32)), "{:?}", r.removed);
+    // Nothing inside the grid goes with it (rim vertices where the slot's walls meet the
+    // border are judged by their 4-ring, which a quadric cannot fit across a step).
+    let inside = |v: u32| (1..15).contains(&(v % 16)) && (1..15).contains(&(v / 16));
+    assert_eq!(
+        r.removed.iter().filter(|&&v| inside(v)).collect::<Vec<_>>(),
+        vec![&(spike as u32)]
+    );
+    // The same vertex at the slot's floor is a sample of it: nothing inside goes.
+    let mut m = grid(16, 16, slot);
+    let r = denoise(&mut m, &DenoiseParams::default()).unwrap();
+    assert!(!r.removed.iter().any(|&v| inside(v)), "{:?}", r.removed);
+}
+
+#[test]
 fn a_piece_cut_off_by_depth_jumps_is_a_spike_cluster() {
     let mut m = grid(12, 12, |_, _| 0.0);
     // Two neighbouring vertices raised together by 20 mm: every edge out of them jumps.

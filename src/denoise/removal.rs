@@ -25,7 +25,9 @@
 //!    removed; the rings around it are refitted and the test repeats, so a cluster is peeled
 //!    from its worst member inwards while its neighbours' fits are not blamed for it. An
 //!    interior vertex that shares a plane with a third of its ring (the step-edge test the
-//!    filter uses, `on_real_surface`) is a crease or lid edge and stays: measured, that keeps
+//!    filter uses, `on_real_surface`; since stop 33 the plane's support must reach round a
+//!    vertex no neighbour is near, [`PEEL_SUPPORT_MIN_SPAN_DEG`]) is a crease or lid edge
+//!    and stays: measured, that keeps
 //!    a third of the real vertices this step would otherwise take (906 → 602 on the clean
 //!    twins of 100 scans) for 2 more vertices left > 2 mm off (9 → 11). Peeling is greedy,
 //!    so once it stops, every peeled vertex that the kept surface now fits within
@@ -161,6 +163,22 @@
 //! (0.1 %); the 29 real scans 1,164 → 1,360 (0.38 %; point clouds +15 to +34, the VRML
 //! scans −2 to +6), none of their 377 feature points moves.
 //!
+//! Stop 33 asks the step-edge test's plane, in peeling only and for a vertex more than the
+//! peeling threshold above or below all its 1-ring neighbours, for support spanning at least
+//! [`PEEL_SUPPORT_MIN_SPAN_DEG`] (150°) around the vertex: seed 84's interior −5.1 mm vertex
+//! sat at the bottom of a closed lid's fissure, 4.9–5.5 mm below all four neighbours, and
+//! was kept because one plane through it met 8 of its 24 ring points, all beyond one side
+//! (126°). Vertices > 2 mm off, seeds 2024 / 1 / 77 / 78 / 79 / 80 / 81 / 82 / 83 / 84 /
+//! 85: 1 / 0 / 0 / 3 / 0 / 0 / 1 / 1 / 0 / **1 → 0** / 0 (84's max 5.07 → 0.80 mm); other
+//! vertices removed +1 on seed 84 and none elsewhere, clean twins unchanged; the 29 real
+//! scans 1,360 → 1,361 (cara1_sonrisa), none of their 377 feature points moves, nor any
+//! point on the 600 scans of `eval-landmarks` seeds 31–34. The span asked of every vertex
+//! found the same for +1 to +12 other and +3 to +16 clean-twin vertices a set and 44 more
+//! on the real scans; asked at 170° by the filter as well, seed 77 kept a 2.9 mm vertex
+//! (0 → 1). Left: 6 vertices in 5 places (2024's, 78's three, 81's and 82's above): 78's
+//! pair and its vertex by an eye continue a real surface beyond a step, each with a
+//! neighbour within 3 mm of its height; the other three are rim vertices.
+//!
 //! The two left on seed 2024 at stop 28: a rim spike (4.98 mm, still left)
 //! whose fit follows it within 2.1 mm once its real neighbours were peeled, and an interior
 //! 4.9 mm pit the step-edge test keeps (removed since stop 29, as a member beside a spike the
@@ -237,6 +255,17 @@ const CLUSTER_FIT_RINGS: usize = 4;
 /// A repaired vertex's neighbourhood must predict its unmoved 1-ring neighbours within this
 /// (mm) (test 4; 98 % of the benchmark's moved vertices are within 1.03 mm).
 pub const REPAIR_CHECK_MAX_MISS_MM: f64 = 1.0;
+/// Test 2's step-edge test asks the plane's supporting ring points to span at least this
+/// angle around a vertex that no 1-ring neighbour comes within the peeling threshold of
+/// (all above it, or all below: [`support_span_asked`]), degrees. A vertex on one side of a
+/// real crease or lid edge has support along the edge both ways (180° or more); a spike
+/// pushed into a slot (a closed lid's fissure) can share a plane with the slot's wall on one
+/// side only (seed 84's subj016_sonrisa: 8 of 24 points over 126°, 5.1 mm below the
+/// fissure). Asked of every vertex it took a notch in a step edge (test
+/// `a_step_edge_is_not_taken_for_a_spike`) and 44 real-scan vertices (nostril and canthus
+/// pits, one feature point moved 2 mm); asked by the filter too, it let the filter move real
+/// canthus pits (cara1_gesto: two feature points moved 1.4–1.6 mm).
+pub const PEEL_SUPPORT_MIN_SPAN_DEG: f64 = 150.0;
 /// … and at least this many of them (a repair inside a cluster has fewer).
 pub const REPAIR_CHECK_MIN_NEIGHBOURS: usize = 2;
 
@@ -301,8 +330,14 @@ pub(super) fn unrepairable(
                             removed[u as usize] || residual[u as usize].abs() <= residual[v].abs()
                         })
                         && (topology.is_boundary[v]
-                            || !*real_surface[v]
-                                .get_or_insert_with(|| on_real_surface(positions, v, rings3.of(v))))
+                            || !*real_surface[v].get_or_insert_with(|| {
+                                on_real_surface(
+                                    positions,
+                                    v,
+                                    rings3.of(v),
+                                    support_span_asked(positions, topology, v, params),
+                                )
+                            }))
                 })
                 .collect();
             if worst.is_empty() {
@@ -345,6 +380,27 @@ pub(super) fn unrepairable(
     large_repairs(positions, input, moved, params.repair_max_mm, &mut removed);
     leftover_fragments(topology, &mut removed);
     removed
+}
+
+/// The span test 2 asks of a vertex's step-edge plane: [`PEEL_SUPPORT_MIN_SPAN_DEG`] for a
+/// vertex more than the peeling threshold above, or below, every 1-ring neighbour (a pit
+/// or peak no neighbour shares), else none (a notch in a step edge has a neighbour at its
+/// own level on the low side).
+fn support_span_asked(
+    positions: &[DVec3],
+    topology: &Topology,
+    v: usize,
+    params: &DenoiseParams,
+) -> f64 {
+    let z = positions[v].z;
+    let t = params.removal_residual_mm;
+    let nb = topology.neighbours(v);
+    let all = |f: &dyn Fn(f64) -> bool| nb.iter().all(|&u| f(positions[u as usize].z - z));
+    if !nb.is_empty() && (all(&|d| d > t) || all(&|d| d < -t)) {
+        PEEL_SUPPORT_MIN_SPAN_DEG
+    } else {
+        0.0
+    }
 }
 
 /// Test 6 of the module docs: pieces of at most [`ISLAND_MAX_VERTICES`] kept vertices that
