@@ -1221,7 +1221,7 @@ impl QuadricFit {
             // a consensus fit (random 9-point subsets, the quadric most points agree with)
             // is not pulled by any minority.
             if let Some(c) = self.consensus()
-                && self.inliers(&c.1) > self.inliers(&z.1)
+                && self.inliers(&c.1, 0) > self.inliers(&z.1, 0)
             {
                 z = c;
             }
@@ -1263,12 +1263,20 @@ impl QuadricFit {
         Some((p.z + z.0, sigma, rough))
     }
 
-    /// Ring points within [`CONSENSUS_TOLERANCE_MM`] of the quadric `coef`.
-    fn inliers(&self, coef: &[f64; 6]) -> usize {
-        self.pts
-            .iter()
-            .filter(|q| (q.z - eval_quadric(coef, q.x, q.y)).abs() < CONSENSUS_TOLERANCE_MM)
-            .count()
+    /// Ring points within [`CONSENSUS_TOLERANCE_MM`] of the quadric `coef`, counted until the
+    /// count can no longer exceed `beat` (0: the whole count).
+    fn inliers(&self, coef: &[f64; 6], beat: usize) -> usize {
+        let n = self.pts.len();
+        let mut count = 0;
+        for (seen, q) in self.pts.iter().enumerate() {
+            if count + (n - seen) <= beat {
+                break;
+            }
+            if (q.z - eval_quadric(coef, q.x, q.y)).abs() < CONSENSUS_TOLERANCE_MM {
+                count += 1;
+            }
+        }
+        count
     }
 
     /// Consensus fit: of [`CONSENSUS_TRIALS`] least-squares quadrics through random
@@ -1291,17 +1299,8 @@ impl QuadricFit {
             else {
                 continue;
             };
-            // Only a count above the best so far matters: stop once it cannot get there.
-            let need = best.map_or(0, |(b, _)| b);
-            let mut count = 0;
-            for (seen, q) in self.pts.iter().enumerate() {
-                if count + (n - seen) <= need {
-                    break;
-                }
-                if (q.z - eval_quadric(&c, q.x, q.y)).abs() < CONSENSUS_TOLERANCE_MM {
-                    count += 1;
-                }
-            }
+            // Only a count above the best so far matters.
+            let count = self.inliers(&c, best.map_or(0, |(b, _)| b));
             if best.is_none_or(|(b, _)| count > b) {
                 best = Some((count, c));
             }

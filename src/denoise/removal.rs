@@ -440,8 +440,10 @@ fn support_span_asked(
     let z = positions[v].z;
     let t = params.removal_residual_mm;
     let nb = topology.neighbours(v);
-    let all = |f: &dyn Fn(f64) -> bool| nb.iter().all(|&u| f(positions[u as usize].z - z));
-    if !nb.is_empty() && (all(&|d| d > t) || all(&|d| d < -t)) {
+    let rise = |u: &u32| positions[*u as usize].z - z;
+    let above = nb.iter().all(|u| rise(u) > t);
+    let below = nb.iter().all(|u| rise(u) < -t);
+    if !nb.is_empty() && (above || below) {
         PEEL_SUPPORT_MIN_SPAN_DEG
     } else {
         0.0
