@@ -194,6 +194,11 @@
 //! places (2024's, 78's three and 82's above): 78's pair and its vertex by an eye continue
 //! a real surface beyond a step, each with a neighbour within 3 mm of its height; the
 //! other two are rim vertices.
+//! Three sets made only after these changes, seeds 86 / 87 / 88 (the hold-out), stop 32 →
+//! stop 33: 3 / 4 / 1 → 3 / 1 / 1 vertices > 2 mm off (max 6.21 / 6.54 / 5.30 mm both;
+//! other vertices removed +7 to +12 a set, clean twins +6 to +7): 86's are a 5-vertex
+//! cluster on a strip two vertices wide between 20–25 mm depth jumps by an ear, 87's and
+//! 88's are interior spikes that put a vertex on the level beyond a real step, as 78's.
 //!
 //! The two left on seed 2024 at stop 28: a rim spike (4.98 mm, still left)
 //! whose fit follows it within 2.1 mm once its real neighbours were peeled, and an interior
