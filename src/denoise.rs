@@ -1500,10 +1500,10 @@ const SURFACE_SUPPORT_MIN_SHARE: f64 = 1.0 / 3.0;
 /// [`SURFACE_SUPPORT_TOLERANCE_MM`]). Such a vertex is a sample of a real surface that the
 /// quadric of the whole ring cannot follow (one side of a lid crease, a lip or mouth edge),
 /// not a spike: a spike is off every plane through it but those through its own cluster.
-/// The supporting points must span at least `min_span_deg` around the vertex (0: any; the
-/// filter asks no span, peeling does, see `removal::PEEL_SUPPORT_MIN_SPAN_DEG`).
+/// With `min_span_deg`, the supporting points must also span that angle around the vertex
+/// (the filter asks no span; peeling does, see `removal::PEEL_SUPPORT_MIN_SPAN_DEG`).
 /// Tries every plane through the vertex and two ring points (24 points: 276 planes).
-fn on_real_surface(input: &[DVec3], v: usize, ring: &[u32], min_span_deg: f64) -> bool {
+fn on_real_surface(input: &[DVec3], v: usize, ring: &[u32], min_span_deg: Option<f64>) -> bool {
     let p = input[v];
     let need = SURFACE_SUPPORT_MIN_POINTS
         .max((SURFACE_SUPPORT_MIN_SHARE * ring.len() as f64).ceil() as usize);
@@ -1520,12 +1520,13 @@ fn on_real_surface(input: &[DVec3], v: usize, ring: &[u32], min_span_deg: f64) -
             }
             let c1 = (q[a].z * q[b].y - q[a].y * q[b].z) / det;
             let c2 = (q[a].x * q[b].z - q[a].z * q[b].x) / det;
-            let support = q
-                .iter()
-                .filter(|r| (r.z - c1 * r.x - c2 * r.y).abs() < SURFACE_SUPPORT_TOLERANCE_MM)
-                .count();
-            if support >= need
-                && (min_span_deg <= 0.0 || support_span_deg(&q, c1, c2) >= min_span_deg)
+            let support = || {
+                q.iter().filter(move |r| {
+                    (r.z - c1 * r.x - c2 * r.y).abs() < SURFACE_SUPPORT_TOLERANCE_MM
+                })
+            };
+            if support().count() >= need
+                && min_span_deg.is_none_or(|min| span_deg(support()) >= min)
             {
                 return true;
             }
@@ -1534,14 +1535,10 @@ fn on_real_surface(input: &[DVec3], v: usize, ring: &[u32], min_span_deg: f64) -
     false
 }
 
-/// The angle (degrees) that the ring points within [`SURFACE_SUPPORT_TOLERANCE_MM`] of the
-/// plane `z = c1 x + c2 y` span as seen from the vertex (360 less the widest gap between them).
-fn support_span_deg(q: &[DVec3], c1: f64, c2: f64) -> f64 {
-    let mut angles: Vec<f64> = q
-        .iter()
-        .filter(|r| (r.z - c1 * r.x - c2 * r.y).abs() < SURFACE_SUPPORT_TOLERANCE_MM)
-        .map(|r| r.y.atan2(r.x).to_degrees())
-        .collect();
+/// The angle (degrees) that `points` (relative to a vertex) span as seen from it: 360 less
+/// the widest gap between their directions.
+fn span_deg<'a>(points: impl Iterator<Item = &'a DVec3>) -> f64 {
+    let mut angles: Vec<f64> = points.map(|r| r.y.atan2(r.x).to_degrees()).collect();
     angles.sort_by(f64::total_cmp);
     let (Some(&first), Some(&last)) = (angles.first(), angles.last()) else {
         return 0.0;
@@ -1563,7 +1560,7 @@ fn veto_real_surface(
     ring: &[u32],
     topology: &Topology,
 ) -> f64 {
-    if disp >= floor && !topology.is_boundary[v] && on_real_surface(input, v, ring, 0.0) {
+    if disp >= floor && !topology.is_boundary[v] && on_real_surface(input, v, ring, None) {
         f64::INFINITY
     } else {
         floor

@@ -441,18 +441,14 @@ fn support_span_asked(
     topology: &Topology,
     v: usize,
     params: &DenoiseParams,
-) -> f64 {
+) -> Option<f64> {
     let z = positions[v].z;
     let t = params.removal_residual_mm;
     let nb = topology.neighbours(v);
     let rise = |u: &u32| positions[*u as usize].z - z;
     let above = nb.iter().all(|u| rise(u) > t);
     let below = nb.iter().all(|u| rise(u) < -t);
-    if !nb.is_empty() && (above || below) {
-        PEEL_SUPPORT_MIN_SPAN_DEG
-    } else {
-        0.0
-    }
+    (!nb.is_empty() && (above || below)).then_some(PEEL_SUPPORT_MIN_SPAN_DEG)
 }
 
 /// Test 6 of the module docs: pieces of at most [`ISLAND_MAX_VERTICES`] kept vertices that
