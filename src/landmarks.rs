@@ -1108,12 +1108,8 @@ impl Detector<'_> {
     /// or more than [`FISSURE_MAX_RISE_MM`] in front of it: `near` stays.
     fn inner_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
         let rel = |v: usize| self.lateral_of(frame, near, side, v);
-        let (lat0, lat1, down, up) = FISSURE_BOX_MM;
-        let search = UvBox {
-            u: (lat0, lat1),
-            v: (-down, up),
-        };
-        let Some(trench) = self.fissure_trench(frame, near, side, search, FISSURE_MIN_DEPTH_MM)
+        let Some(trench) =
+            self.fissure_trench(frame, near, side, FISSURE_BOX_MM, FISSURE_MIN_DEPTH_MM)
         else {
             return near;
         };
@@ -1146,14 +1142,13 @@ impl Detector<'_> {
     /// [`OUTER_FISSURE_MAX_RISE_MM`] in front of it (the upper lid): `near` stays.
     fn outer_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
         let rel = |v: usize| self.lateral_of(frame, near, side, v);
-        let (lat0, lat1, down, up) = OUTER_FISSURE_BOX_MM;
-        let search = UvBox {
-            u: (lat0, lat1),
-            v: (-down, up),
-        };
-        let Some(trench) =
-            self.fissure_trench(frame, near, side, search, OUTER_FISSURE_MIN_DEPTH_MM)
-        else {
+        let Some(trench) = self.fissure_trench(
+            frame,
+            near,
+            side,
+            OUTER_FISSURE_BOX_MM,
+            OUTER_FISSURE_MIN_DEPTH_MM,
+        ) else {
             return near;
         };
         let corner = trench
@@ -1180,17 +1175,22 @@ impl Detector<'_> {
     /// A lid fissure near `near`: a narrow trench, each vertex's depth relative to the
     /// Gaussian-weighted mean depth of its surroundings (σ = [`FISSURE_SMOOTHING_MM`], so a
     /// face's own curvature and fall-off cancel) below −`min_depth_mm`. Of the regions of
-    /// such vertices in `search` (relative to `near`, [`Self::lateral_of`]) the one with the
-    /// deepest vertex; `None` when there is none of at least 3 vertices. Vertices beside a
-    /// hole are not trench vertices (their surroundings are one-sided).
+    /// such vertices in the box (mm from `near`, [`Self::lateral_of`]: lateral from, lateral
+    /// to, down, up) the one with the deepest vertex; `None` when there is none of at least
+    /// 3 vertices. Vertices beside a hole are not trench vertices (their surroundings are
+    /// one-sided).
     fn fissure_trench(
         &self,
         frame: &Frame,
         near: usize,
         side: f64,
-        search: UvBox,
+        (lateral_from, lateral_to, down, up): (f64, f64, f64, f64),
         min_depth_mm: f64,
     ) -> Option<Vec<u32>> {
+        let search = UvBox {
+            u: (lateral_from, lateral_to),
+            v: (-down, up),
+        };
         let reach = 3.0 * FISSURE_SMOOTHING_MM;
         let surroundings = search.grown(reach);
         let local: Vec<(usize, DVec2)> = (0..self.mesh.vertex_count())
