@@ -47,13 +47,15 @@
 //! |---|---|---|
 //! | nose tip | 2.25 | (−0.05, −1.96, 0.24) |
 //! | inner eye left / right | 2.35 / 2.32 | (−0.20, 1.04, 0.04) / (−0.20, 1.08, 0.01) |
-//! | outer eye left / right | 2.84 / 2.99 | (0.27, 0.08, −0.14) / (0.33, 0.06, −0.14) |
+//! | outer eye left / right | 1.52 / 1.60 | (0.04, 0.14, −0.01) / (0.08, 0.12, 0.01) |
 //! | nose corner left / right | 2.16 / 2.29 | (0.90, −0.54, −0.55) / (1.07, −0.50, −0.72) |
 //! | mouth corner left / right | 2.15 / 2.25 | (−0.10, −0.73, −0.39) / (0.21, −0.84, −0.49) |
 //! | chin | 3.07 | (−0.27, 1.21, 1.64) |
 //!
 //! (Inner and outer eyes since the fissure step of landmarks step 3, stop 28; before it
-//! 3.12 / 3.22 at (−0.87, 1.51, 0.37) / (−0.98, 1.62, 0.35) and 3.01 / 3.17.)
+//! 3.12 / 3.22 at (−0.87, 1.51, 0.37) / (−0.98, 1.62, 0.35) and 3.01 / 3.17. Outer eyes
+//! since the fissure step of step 4, stop 34; before it 2.80 / 2.97 at (0.24, 0.10, −0.11)
+//! / (0.31, 0.05, −0.15): no offset to remove, the error was scatter along the fissure.)
 //! The nose tip (the most protruding point) lies 2 mm below the benchmark's iBUG 30, and the
 //! inner-eye pit lay 1.5 mm above and 0.9 mm medial of its iBUG 39/42 (1.0 mm above since the
 //! fissure step): most of those points' error. Subtracting the (old) inner-eye offset gave
