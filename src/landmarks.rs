@@ -451,7 +451,7 @@ pub struct LandmarkParams {
     /// 2.32 mm on neutral benchmark scans (seeds 31–33).
     pub inner_eye_at_fissure: bool,
     /// Move each outer eye corner to its lid fissure's lateral end
-    /// (`outer_eye_fissure_end`). Default on: mean error 2.73 / 2.92 → 1.50 / 1.50 mm on
+    /// (`outer_eye_fissure_end`). Default on: mean error 2.70 / 2.83 → 1.45 / 1.54 mm on
     /// neutral benchmark scans (seeds 31–34).
     pub outer_eye_at_fissure: bool,
 }
@@ -1111,7 +1111,7 @@ impl Detector<'_> {
     /// [`FISSURE_MAX_SHIFT_MM`] from `near`, more than [`FISSURE_MAX_MEDIAL_MM`] medial of it
     /// or more than [`FISSURE_MAX_RISE_MM`] in front of it: `near` stays.
     fn inner_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
-        let rel = |v: usize| self.lateral_of(frame, near, side, v);
+        let rel = self.lateral_from(frame, near, side);
         let Some(trench) =
             self.fissure_trench(frame, near, side, FISSURE_BOX_MM, FISSURE_MIN_DEPTH_MM)
         else {
@@ -1145,7 +1145,7 @@ impl Detector<'_> {
     /// trench, or a corner more than [`FISSURE_MAX_SHIFT_MM`] from `near` or more than
     /// [`OUTER_FISSURE_MAX_RISE_MM`] in front of it (the upper lid): `near` stays.
     fn outer_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
-        let rel = |v: usize| self.lateral_of(frame, near, side, v);
+        let rel = self.lateral_from(frame, near, side);
         let Some(trench) = self.fissure_trench(
             frame,
             near,
@@ -1169,17 +1169,25 @@ impl Detector<'_> {
         }
     }
 
-    /// Vertex `v` relative to `near` in the face frame, its x lateral (away from the
-    /// midline on `side`), its y up, mm.
-    fn lateral_of(&self, frame: &Frame, near: usize, side: f64, v: usize) -> DVec2 {
-        let q = frame.uv(self.p(v)) - frame.uv(self.p(near));
-        DVec2::new(q.x * side, q.y)
+    /// Vertices relative to `near` in the face frame, x lateral (away from the midline on
+    /// `side`), y up, mm.
+    fn lateral_from<'a>(
+        &'a self,
+        frame: &'a Frame,
+        near: usize,
+        side: f64,
+    ) -> impl Fn(usize) -> DVec2 + 'a {
+        let origin = frame.uv(self.p(near));
+        move |v| {
+            let q = frame.uv(self.p(v)) - origin;
+            DVec2::new(q.x * side, q.y)
+        }
     }
 
     /// A lid fissure near `near`: a narrow trench, each vertex's depth relative to the
     /// Gaussian-weighted mean depth of its surroundings (σ = [`FISSURE_SMOOTHING_MM`], so a
     /// face's own curvature and fall-off cancel) below −`min_depth_mm`. Of the regions of
-    /// such vertices in the box (mm from `near`, [`Self::lateral_of`]: lateral from, lateral
+    /// such vertices in the box (mm from `near`, [`Self::lateral_from`]: lateral from, lateral
     /// to, down, up) the one with the deepest vertex; `None` when there is none of at least
     /// 3 vertices. Vertices beside a hole are not trench vertices (their surroundings are
     /// one-sided).
@@ -1188,17 +1196,18 @@ impl Detector<'_> {
         frame: &Frame,
         near: usize,
         side: f64,
-        (lateral_from, lateral_to, down, up): (f64, f64, f64, f64),
+        (lat_from, lat_to, down, up): (f64, f64, f64, f64),
         min_depth_mm: f64,
     ) -> Option<Vec<u32>> {
         let search = UvBox {
-            u: (lateral_from, lateral_to),
+            u: (lat_from, lat_to),
             v: (-down, up),
         };
         let reach = 3.0 * FISSURE_SMOOTHING_MM;
         let surroundings = search.grown(reach);
+        let rel = self.lateral_from(frame, near, side);
         let local: Vec<(usize, DVec2)> = (0..self.mesh.vertex_count())
-            .map(|v| (v, self.lateral_of(frame, near, side, v)))
+            .map(|v| (v, rel(v)))
             .filter(|&(_, q)| surroundings.contains(q))
             .collect();
         let two_s2 = 2.0 * FISSURE_SMOOTHING_MM * FISSURE_SMOOTHING_MM;
