@@ -105,10 +105,13 @@
 //! 10 mm (88.5 % of the 270 expression scans; inner eyes 2.59 / 2.24, outer 1.76 / 1.85).
 //! Seeds 34–36 (not used to tune step 4's fissure step): outer 1.50 / 4.2 and 1.57 / 4.6,
 //! 97.2 % (expressions 85.2 %, outer 2.05 / 2.05). Seed 39 (30 subjects, made at stop 35
-//! after all the steps were fixed, measured once): nose tip 2.18 / 4.0, inner eyes 2.70 /
-//! 7.2 and 2.75 / 6.5, outer 1.55 / 4.0 and 1.42 / 3.5, 58 of 60 neutral scans (96.7 %; one
-//! mouth corner 9.4 mm low, flagged by the level check, and one pair of inner corners 8 mm
-//! high), expressions 83.3 %. Pooled over seeds 31–39 (540 neutral scans): 530, 98.1 %.
+//! after all the steps were fixed; with stop 35's denoising): nose tip 2.18 / 4.0, inner eyes
+//! 2.70 / 7.2 and 2.75 / 6.5, outer 1.56 / 4.7 and 1.42 / 3.5, 58 of 60 neutral scans
+//! (96.7 %; one mouth corner 9.4 mm low, flagged by the level check, and one pair of inner
+//! corners 8 mm high), expressions 83.3 %. Seeds 31–39 with stop 35's rules (540 neutral
+//! scans): nose tip 2.23 / 4.1, inner eyes 2.39 / 6.2 and 2.33 / 6.1, outer 1.60 / 4.8 and
+//! 1.60 / 4.9 (the highest seed's mean 2.75 mm), 531 with all 9 points within 10 mm
+//! (98.3 %; 58–60 of 60 on every seed); expressions 704 of 810 (86.9 %).
 //! Before the fissure step of step 4
 //! (stop 34): outer 2.80 / 6.0 and 2.97 / 5.9, 98.9 % (expressions 88.5 %, outer 2.85 /
 //! 3.12); seeds 34–36 outer 2.84 / 2.67, 98.3 % (expressions 85.6 %, outer 3.27 / 3.50).
