@@ -1240,13 +1240,7 @@ impl Detector<'_> {
                 }
             }
             relief[v] = p.z - wz / w;
-            let by_hole = self.topology.is_boundary[v]
-                || self
-                    .topology
-                    .neighbours(v)
-                    .iter()
-                    .any(|&u| self.topology.is_boundary[u as usize]);
-            mask[v] = relief[v] < -min_depth_mm && !by_hole;
+            mask[v] = relief[v] < -min_depth_mm && !self.topology.touches_boundary(v);
         }
         let deepest = |r: &[u32]| r.iter().map(|&v| relief[v as usize]).fold(0.0, f64::min);
         self.regions(&mask)

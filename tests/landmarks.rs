@@ -26,10 +26,19 @@ fn generated_scan(stem: &str) -> (Mesh, ScanTruth, DVec3) {
     (mesh, truth, tip)
 }
 
+/// The default parameters' evaluation of the small generated set, made once for the tests
+/// that use it.
+fn default_report() -> &'static eval::EvalReport {
+    static REPORT: std::sync::OnceLock<eval::EvalReport> = std::sync::OnceLock::new();
+    REPORT.get_or_init(|| {
+        let dir = common::synth_dataset(4, 3, false);
+        eval::evaluate_dir(&dir, true, &LandmarkParams::default()).unwrap()
+    })
+}
+
 #[test]
 fn generated_scans_meet_the_measured_accuracy() {
-    let dir = common::synth_dataset(4, 3, false);
-    let report = eval::evaluate_dir(&dir, true, &LandmarkParams::default()).unwrap();
+    let report = default_report();
     let s = report.summary();
     let n = &s.neutral;
     assert_eq!(n.scans, 8);
@@ -122,9 +131,7 @@ fn outer_eye_corners_at_the_fissure_end_are_closer_to_the_truth() {
 fn assert_closer_with_defaults(without: &LandmarkParams, points: [&str; 2]) {
     let dir = common::synth_dataset(4, 3, false);
     let before = eval::evaluate_dir(&dir, true, without).unwrap().summary();
-    let after = eval::evaluate_dir(&dir, true, &LandmarkParams::default())
-        .unwrap()
-        .summary();
+    let after = default_report().summary();
     for p in points {
         let all = |s: &eval::Summary| {
             let (n, e) = (&s.neutral.points[p], &s.expression.points[p]);

@@ -687,25 +687,16 @@ fn cluster_seeds(
             } else {
                 0.0
             };
-            let rim = topology.is_boundary[v]
-                || topology
-                    .neighbours(v)
-                    .iter()
-                    .any(|&u| topology.is_boundary[u as usize]);
-            let min = if rim {
-                CLUSTER_SEED_MIN_OFF_MM
-            } else {
-                CLUSTER_SEED_MIN_RESIDUAL_MM
-            };
-            off_mm.abs() > min
+            off_mm.abs() > CLUSTER_SEED_MIN_RESIDUAL_MM
+                || (off_mm.abs() > CLUSTER_SEED_MIN_OFF_MM && topology.touches_boundary(v))
         })
         .collect()
 }
 
 /// Test 3 of the module docs: around each seed ([`cluster_seeds`]), every kept vertex of its
 /// 2-ring (a grid's 5 × 5 block) whose height, fitted from its [`CLUSTER_FIT_RINGS`]-ring
-/// without that block, misses by more than [`CLUSTER_MAX_MISS_MM`] is removed too. One pass: a second found nothing more on the
-/// benchmark and cost more real vertices.
+/// without that block, misses by more than [`CLUSTER_MAX_MISS_MM`] is removed too. One pass:
+/// a second found nothing more on the benchmark and cost more real vertices.
 fn complete_clusters(
     positions: &[DVec3],
     topology: &Topology,

@@ -99,6 +99,15 @@ impl Topology {
         &self.neighbours[self.neighbour_offsets[v] as usize..self.neighbour_offsets[v + 1] as usize]
     }
 
+    /// `v` is on the boundary or one of its neighbours is (its ring is one-sided).
+    pub fn touches_boundary(&self, v: usize) -> bool {
+        self.is_boundary[v]
+            || self
+                .neighbours(v)
+                .iter()
+                .any(|&u| self.is_boundary[u as usize])
+    }
+
     /// Faces that use vertex `v`.
     pub fn vertex_faces(&self, v: usize) -> &[u32] {
         &self.vertex_faces
