@@ -757,6 +757,13 @@ pub fn landmarks(
         crate::landmarks::render::write_png(path, &mesh, &d.shape_index, points)?;
     }
     let report = found.with_context(|| format!("{}: feature points not found", input.display()))?;
+    if !report.suspect.is_empty() {
+        eprintln!(
+            "facesynth: {}: suspect feature points: {}",
+            input.display(),
+            report.suspect.join("; ")
+        );
+    }
     let mut value = report.to_json();
     value["millis"] = json!(millis);
     value["input"] = json!(input);

@@ -45,6 +45,14 @@ impl FeaturePoint {
         FeaturePoint::Chin,
     ];
 
+    /// The points the detector finds as borders of the face region (where the cheek turns
+    /// away, the hairline) rather than as anatomical points.
+    pub const BORDER: [FeaturePoint; 3] = [
+        FeaturePoint::CheekLeft,
+        FeaturePoint::CheekRight,
+        FeaturePoint::Forehead,
+    ];
+
     pub fn index(self) -> usize {
         self as usize
     }

@@ -11,11 +11,7 @@ use std::path::Path;
 
 /// Feature points the detector finds as borders of the face region rather than as anatomical
 /// points (see [`prepare_mesh`]).
-pub const BORDER_POINTS: [crate::FeaturePoint; 3] = [
-    crate::FeaturePoint::CheekLeft,
-    crate::FeaturePoint::CheekRight,
-    crate::FeaturePoint::Forehead,
-];
+pub const BORDER_POINTS: [crate::FeaturePoint; 3] = crate::FeaturePoint::BORDER;
 
 /// The points the registration is driven by. Detected cheek and forehead points are the face
 /// region's borders (paper steps 7–8: where the cheek turns away, the hairline), not the

@@ -21,6 +21,11 @@ pub(super) struct Detector<'a> {
     pub(super) desc: &'a SurfaceDescriptors,
     pub(super) params: &'a LandmarkParams,
     pub(super) warnings: Vec<String>,
+    /// Where face localisation put the nose tip (this mesh's frame): step 1 keeps the region
+    /// around it and step 2 looks near it. `None`: the paper's steps alone.
+    pub(super) prior_nose: Option<DVec3>,
+    /// Points placed at their Table 2 average position (their feature was not found).
+    pub(super) guessed: Vec<FeaturePoint>,
 }
 
 impl Detector<'_> {
@@ -130,6 +135,9 @@ impl Detector<'_> {
             roll_deg: roll.to_degrees(),
             symmetry_roll_deg: symmetry_roll.map(f64::to_degrees),
             face_vertices,
+            guessed: self.guessed,
+            localisation: None,
+            suspect: Vec::new(),
         })
     }
 
@@ -239,6 +247,7 @@ impl Detector<'_> {
         at: DVec2,
     ) -> usize {
         let p = if side < 0.0 { p.mirror() } else { p };
+        self.guessed.push(p);
         self.warnings.push(format!(
             "{p}: its surface feature was not found; placed at the Table 2 average position"
         ));

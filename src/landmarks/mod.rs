@@ -2,9 +2,19 @@
 //! surface descriptors of [`crate::curvature`], with the inter-anchor distance statistics of
 //! the paper's Table 2 (from Colbry/Lu, ref. [9]) as named constants ([`TABLE_2`]).
 //!
-//! Input: a frontal scan in its scanner frame — face towards +z, y up, millimetres, the
-//! subject's left at +x — denoised first (the CLI and pipeline run [`crate::denoise`]):
-//! without it, spikes and noise break up the concave regions the steps look for.
+//! Input: a scan in millimetres, denoised first (the CLI and pipeline run
+//! [`crate::denoise`]): without it, spikes and noise break up the concave regions the steps
+//! look for. The paper's steps assume a frontal face in the scanner frame (face towards +z,
+//! y up, the subject's left at +x) and take the biggest front-facing region as the face.
+//! Before them, **face localisation** ([`localise`], our addition) finds the face among
+//! candidates (protrusion peaks in the scanner frame, then tilted and axis-permuted frames)
+//! by the rigid fit of the generic face and its **face-likeness** (the fraction of the generic
+//! face within 4 mm of the scan after the fit). The steps then run on the scan turned so that
+//! z is the scanner's line of sight (the mean vertex normal) and y the located face's up, with
+//! step 1 kept to an ellipse about the located nose and step 2 to 30 mm of it; the points are
+//! turned back, so they are in the input's frame. [`LandmarkReport::localisation`] gives the
+//! orientation found; [`LandmarkReport::suspect`] the reasons not to trust the points
+//! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point).
 //!
 //! Errors: [`detect`] fails only when there is no face to work on (no front-facing region,
 //! nothing that protrudes like a nose). A feature that is not found (e.g. an eye lost to a
@@ -113,6 +123,7 @@
 //! them, and what was tried: `docs/measurements.md`.
 
 pub mod eval;
+pub mod localise;
 pub mod render;
 
 mod cheeks;
@@ -184,6 +195,11 @@ pub struct LandmarkParams {
     /// Move each outer eye corner to its lid fissure's lateral end
     /// (`outer_eye_fissure_end`). Default on (measured: docs/measurements.md).
     pub outer_eye_at_fissure: bool,
+    /// Face localisation before the nine steps ([`localise`]): the face is found among
+    /// candidates by its face-likeness, the scan is turned into its frame for the steps, and the
+    /// points are turned back. Default on; `None` runs the paper's steps on the scan as it is
+    /// (scanner frame assumed, the largest front-facing region taken as the face).
+    pub localise: Option<localise::LocaliseParams>,
 }
 
 impl Default for LandmarkParams {
@@ -196,6 +212,7 @@ impl Default for LandmarkParams {
             nose_probe_radius_mm: 25.0,
             inner_eye_at_fissure: true,
             outer_eye_at_fissure: true,
+            localise: Some(localise::LocaliseParams::default()),
         }
     }
 }
@@ -239,6 +256,62 @@ pub struct LandmarkReport {
     pub symmetry_roll_deg: Option<f64>,
     /// Vertices of the segmented face region (step 1).
     pub face_vertices: usize,
+    /// Points placed at their Table 2 average position because their feature was not found.
+    pub guessed: Vec<FeaturePoint>,
+    /// Where the face was found and how it is turned ([`localise`]); `None` when localisation
+    /// was switched off ([`LandmarkParams::localise`]).
+    pub localisation: Option<localise::Localisation>,
+    /// Why the points should not be trusted, one line each; empty when nothing speaks against
+    /// them. See [`suspect_reasons`].
+    pub suspect: Vec<String>,
+}
+
+/// A head turned further than this from frontal (yaw, degrees) is a profile: half the face is
+/// hidden and the nine steps, built for frontal faces, place points on what is left.
+pub const PROFILE_MIN_YAW_DEG: f64 = 35.0;
+
+/// Why a detection is suspect (empty: it is not): its face-likeness is below
+/// [`localise::LocaliseParams::face_likeness_min`] (not a face, or most of it missing), the
+/// head is turned into a profile ([`PROFILE_MIN_YAW_DEG`]), or one of the nine anatomical
+/// points (all but cheeks and forehead, which are region borders) had to be guessed at its
+/// Table 2 average position.
+pub fn suspect_reasons(
+    localisation: Option<&localise::Localisation>,
+    guessed: &[FeaturePoint],
+    params: &localise::LocaliseParams,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(l) = localisation {
+        if l.face_likeness < params.face_likeness_min {
+            out.push(format!(
+                "face-likeness {:.2} is below {}: only {:.0} % of the generic face's upper part \
+                 lies within {} mm of the scan (not a face, or most of it missing)",
+                l.face_likeness,
+                params.face_likeness_min,
+                100.0 * l.face_likeness,
+                params.inlier_mm
+            ));
+        }
+        let (yaw, _, _) = localise::yaw_pitch_roll_deg(l.face_from_scan);
+        if yaw.abs() > PROFILE_MIN_YAW_DEG {
+            out.push(format!(
+                "the head is turned {yaw:.0}° (a profile; the feature steps need a face within \
+                 ±{PROFILE_MIN_YAW_DEG}° of frontal)"
+            ));
+        }
+    }
+    let anatomical: Vec<&str> = guessed
+        .iter()
+        .filter(|p| !FeaturePoint::BORDER.contains(p))
+        .map(|p| p.name())
+        .collect();
+    if !anatomical.is_empty() {
+        out.push(format!(
+            "not found, placed at the Table 2 average position: {}",
+            anatomical.join(", ")
+        ));
+    }
+    out
 }
 
 impl LandmarkReport {
@@ -279,6 +352,23 @@ impl LandmarkReport {
             "roll_deg": round3(self.roll_deg),
             "symmetry_roll_deg": self.symmetry_roll_deg.map(round3),
             "face_vertices": self.face_vertices,
+            "guessed": self.guessed.iter().map(|p| p.name()).collect::<Vec<_>>(),
+            "confidence": self.localisation.map(|l| round3(l.face_likeness)),
+            "suspect": !self.suspect.is_empty(),
+            "suspect_reasons": self.suspect,
+            "orientation": self.localisation.map(|l| {
+                let (yaw, pitch, roll) = localise::yaw_pitch_roll_deg(l.face_from_scan);
+                let (facing, up) = localise::facing_and_up(l.face_from_scan);
+                let m = l.face_from_scan.transpose().to_cols_array_2d();
+                json!({
+                    "facing": facing, "up": up,
+                    "yaw_deg": round3(yaw), "pitch_deg": round3(pitch), "roll_deg": round3(roll),
+                    "face_from_scan": m.map(|r| r.map(|x| (x * 1e6).round() / 1e6)),
+                    "nose_tip_fit_mm": l.nose_tip_in_scan.to_array().map(round3),
+                    "fit_rms_mm": round3(l.rms_mm),
+                    "candidates_fitted": l.candidates_fitted,
+                })
+            }),
         })
     }
 }
@@ -312,12 +402,85 @@ pub fn detect_with(
             topology.vertex_count()
         )));
     }
-    Detector {
-        mesh,
+    if n < MIN_FACE_VERTICES {
+        return Err(Error::algorithm(
+            "landmarks: facial segmentation",
+            format!("the scan has only {n} vertices; a face needs at least {MIN_FACE_VERTICES}"),
+        ));
+    }
+    let Some(localise_params) = params.localise else {
+        return Detector {
+            mesh,
+            topology,
+            desc,
+            params,
+            warnings: Vec::new(),
+            prior_nose: None,
+            guessed: Vec::new(),
+        }
+        .run();
+    };
+    let found = localise::localise(mesh, &localise_params)?;
+    // The steps run on the scan turned into a frame whose z is the scanner's line of sight and
+    // whose y is the located face's up (any roll and any axis convention taken out). Yaw and
+    // pitch of the head against the line of sight stay: the steps read depth, front-facing
+    // normals and depth jumps, which mean what the scanner saw.
+    let face_from_scan = steps_frame(mesh, found.face_from_scan);
+    let mut turned = mesh.clone();
+    for p in turned.positions_mm.iter_mut() {
+        *p = face_from_scan * *p;
+    }
+    for nrm in turned.normals.iter_mut() {
+        *nrm = face_from_scan * *nrm;
+    }
+    let mut turned_desc = desc.clone();
+    for nrm in turned_desc.normal.iter_mut() {
+        *nrm = face_from_scan * *nrm;
+    }
+    let mut report = Detector {
+        mesh: &turned,
         topology,
-        desc,
+        desc: &turned_desc,
         params,
         warnings: Vec::new(),
+        prior_nose: Some(face_from_scan * found.nose_tip_in_scan),
+        guessed: Vec::new(),
     }
-    .run()
+    .run()?;
+    let scan_from_face = face_from_scan.transpose();
+    for p in FeaturePoint::ALL {
+        report
+            .landmarks
+            .set(p, scan_from_face * report.landmarks.get(p));
+    }
+    report.suspect = suspect_reasons(Some(&found), &report.guessed, &localise_params);
+    report.localisation = Some(found);
+    Ok(report)
 }
+
+/// The frame the nine steps run in (rotation from the scan): z along the line of sight, estimated
+/// as the mean vertex normal (a single-view range scan's surface faces its scanner, its normals
+/// spread about the line of sight), turned to the side the located face looks to; y the located
+/// face's up, made perpendicular to it. Both follow any rotation of the data, so the steps see
+/// the same thing however the file's axes lie.
+fn steps_frame(mesh: &Mesh, located: glam::DMat3) -> glam::DMat3 {
+    let face_z = located.transpose().z_axis;
+    let face_y = located.transpose().y_axis;
+    let mean = mesh.normals.iter().copied().sum::<glam::DVec3>();
+    let mut z = mean.normalize_or_zero();
+    if z.dot(face_z) < 0.0 {
+        z = -z;
+    }
+    // Not a single-view scan (a closed head), or the face looks across the view: the located
+    // face's own direction.
+    if z.dot(face_z) < 0.5 {
+        z = face_z;
+    }
+    let y = (face_y - z * face_y.dot(z)).normalize_or(face_y);
+    let x = y.cross(z);
+    glam::DMat3::from_cols(x, y, z).transpose()
+}
+
+/// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have
+/// 10,000 or more; a face at 2 mm spacing ~3,000).
+pub const MIN_FACE_VERTICES: usize = 200;

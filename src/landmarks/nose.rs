@@ -5,6 +5,12 @@ use super::frame::DepthGrid;
 use crate::{Error, Result};
 use glam::{DVec2, DVec3};
 
+/// After face localisation, step 2 looks for the tip within this distance (across the view) of
+/// where the generic face's tip landed, mm. The rigid fit of an average face places its tip
+/// within ~20 mm of a real one (faces differ in size and nose shape); a chin, collar or
+/// shoulder that protrudes like a nose lies 60 mm or more away.
+pub const NOSE_PRIOR_REACH_MM: f64 = 30.0;
+
 impl Detector<'_> {
     /// Step 2: the most protruding face vertex, refined to the local height maximum.
     pub(super) fn nose_tip(&self, face: &[bool]) -> Result<(DVec3, usize)> {
@@ -28,7 +34,11 @@ impl Detector<'_> {
             .collect();
         let mut best: Option<(f64, usize)> = None;
         for &v in &pts {
-            if self.desc.shape_index[v] < 0.5 {
+            if self.desc.shape_index[v] < 0.5
+                || self
+                    .prior_nose
+                    .is_some_and(|tip| (self.p(v) - tip).truncate().length() > NOSE_PRIOR_REACH_MM)
+            {
                 continue;
             }
             let p = self.p(v);

@@ -11,12 +11,28 @@ pub const FACE_MIN_DZ: f64 = 0.5;
 /// [`ENCLOSED_ISLAND_BAND_MM`] of its row / column) is part of the face.
 pub const ENCLOSED_ISLAND_MIN_VERTICES: usize = 20;
 pub const ENCLOSED_ISLAND_BAND_MM: f64 = 3.0;
+/// Our step 1 after face localisation ([`super::localise`]): only vertices inside an ellipse
+/// about the located nose tip (in the face frame) can be face, so a torso, collar or shoulder
+/// cannot be the largest region. Semi-axes 80 mm across (beyond the cheek borders, ~65 mm;
+/// short of the ears) and 105 mm up and down about a centre 5 mm above the tip (chin −71 mm
+/// and hairline up to ~+100 mm, Table 2 plus margins).
+pub const FACE_REGION_SEMI_X_MM: f64 = 80.0;
+pub const FACE_REGION_SEMI_Y_MM: f64 = 105.0;
+pub const FACE_REGION_CENTRE_Y_MM: f64 = 5.0;
 
 impl Detector<'_> {
     /// Step 1: the largest connected region facing the scanner.
     pub(super) fn segment_face(&self) -> Result<Vec<bool>> {
+        let near_prior = |v: usize| {
+            self.prior_nose.is_none_or(|tip| {
+                let d = self.p(v) - tip;
+                (d.x / FACE_REGION_SEMI_X_MM).powi(2)
+                    + ((d.y - FACE_REGION_CENTRE_Y_MM) / FACE_REGION_SEMI_Y_MM).powi(2)
+                    <= 1.0
+            })
+        };
         let mask: Vec<bool> = (0..self.mesh.vertex_count())
-            .map(|v| self.desc.dz(v) >= FACE_MIN_DZ && self.desc.normal[v].z > 0.0)
+            .map(|v| self.desc.dz(v) >= FACE_MIN_DZ && self.desc.normal[v].z > 0.0 && near_prior(v))
             .collect();
         // The regions once: the largest is the face, some others may join it below.
         let regions = self.regions(&mask);

@@ -1,0 +1,600 @@
+//! Face localisation: where the face is in a scan and how the head is turned, found before the
+//! paper's nine steps so that they run on a frontal, upright face.
+//!
+//! The paper's steps assume a frontal face in the scanner frame, and its step 1 takes the
+//! biggest front-facing region as the face. Real scans break both: a torso, collar or shoulders
+//! in view can be bigger than the face or protrude further than the nose; heads are pitched,
+//! rolled and turned; meshes from other tools come y-up or facing −z. So candidates for the face
+//! are generated and each is scored by how face-like it is:
+//!
+//! 1. **Orientations.** The scanner frame first (face towards +z, y up). Where no candidate
+//!    there is face-like (below [`LocaliseParams::face_likeness_min`]), the 23 other
+//!    axis-aligned frames are tried too (face towards ±x, ±y, ±z, up along one of the other
+//!    two axes), and the best candidate of all wins.
+//! 2. **Nose candidates** per orientation: the peaks of protrusion (depth minus the mean depth
+//!    on a circle of [`LocaliseParams::probe_radius_mm`] around it, as in step 2) on a 3 mm
+//!    depth grid, at most [`LocaliseParams::candidates`] per orientation, 30 mm apart. A nose
+//!    protrudes 15–25 mm from the cheeks, lip and brow at that radius; a chin, a collar or a
+//!    shoulder can protrude as far, which is why the candidates are scored and not trusted.
+//! 3. **Rigid fit** of the generic face's upper part (every vertex above
+//!    [`TEMPLATE_MIN_Y_MM`]: forehead, eyes, nose, upper cheeks, which an expression moves
+//!    little) from each candidate: iterated closest points on the scan surface with Horn's
+//!    rigid fit, the pairs trimmed at 15, then 9, then 6 mm.
+//! 4. **Face-likeness**: the fraction of those template points that lie within
+//!    [`LocaliseParams::inlier_mm`] of the scan after the fit. It is 0 for no face and near 1
+//!    for a complete face of average shape; holes (eyes lost by the scanner), hair over the
+//!    forehead and a face far from average lower it. The candidate with the highest wins.
+//!
+//! The winning fit gives the face frame: the rotation that turns the scan so that the face looks
+//! along +z with its forehead up ([`Localisation::face_from_scan`]). Differences from the
+//! paper: it has no such search (its scans are frontal by construction).
+
+use crate::generic_face;
+use crate::mesh::Mesh;
+use crate::registration::{SurfaceIndex, horn_absolute_orientation};
+use crate::{Error, Result};
+use glam::{DMat3, DVec2, DVec3};
+use std::sync::OnceLock;
+
+/// Template points are the generic face's vertices above this height (nose tip at 0), mm: the
+/// upper lip and below move with expressions and the jaw.
+pub const TEMPLATE_MIN_Y_MM: f64 = -20.0;
+
+/// Parameters of [`localise`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocaliseParams {
+    /// Nose candidates kept per orientation. Default 4.
+    pub candidates: usize,
+    /// Radius of the protrusion probe, mm. Default 25 (the nose's base half-width).
+    pub probe_radius_mm: f64,
+    /// Smallest protrusion of a nose candidate, mm. Default 8.
+    pub min_protrusion_mm: f64,
+    /// A template point within this distance of the scan after the fit counts as matched, mm.
+    /// Default 4 (faces differ from the average by a few mm; non-faces by tens).
+    pub inlier_mm: f64,
+    /// Below this face-likeness the scanner frame is not trusted and the other orientations are
+    /// searched; below it after the search the detection is suspect. Default 0.5.
+    pub face_likeness_min: f64,
+    /// Search the other 23 axis-aligned orientations when the scanner frame gives no face.
+    /// Default true; false trusts the scanner frame (face towards +z, y up).
+    pub search_orientations: bool,
+}
+
+impl Default for LocaliseParams {
+    fn default() -> Self {
+        LocaliseParams {
+            candidates: 4,
+            probe_radius_mm: 25.0,
+            min_protrusion_mm: 8.0,
+            inlier_mm: 4.0,
+            face_likeness_min: 0.5,
+            search_orientations: true,
+        }
+    }
+}
+
+/// Where the face is and how it is turned.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Localisation {
+    /// Rotation from the scan frame into the face frame: the face looks along +z, its forehead
+    /// towards +y, the subject's left towards +x.
+    pub face_from_scan: DMat3,
+    /// The generic face's nose tip after the fit, in the scan frame, mm (a prior for step 2).
+    pub nose_tip_in_scan: DVec3,
+    /// Fraction of the template within [`LocaliseParams::inlier_mm`] of the scan, 0–1.
+    pub face_likeness: f64,
+    /// RMS distance of the matched template points, mm.
+    pub rms_mm: f64,
+    /// The axis-aligned orientation the winning candidate started from
+    /// (`face_from_scan` ≈ this, up to the head's own pose).
+    pub start: AxisFrame,
+    /// Nose candidates fitted.
+    pub candidates_fitted: usize,
+}
+
+/// An axis-aligned frame: the scan axis the face looks along and the one its forehead points to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AxisFrame {
+    /// Index 0–5 of +x, −x, +y, −y, +z, −z.
+    pub facing: usize,
+    pub up: usize,
+}
+
+const AXIS_NAMES: [&str; 6] = ["+x", "-x", "+y", "-y", "+z", "-z"];
+
+fn axis(k: usize) -> DVec3 {
+    let mut v = DVec3::ZERO;
+    v[k / 2] = if k.is_multiple_of(2) { 1.0 } else { -1.0 };
+    v
+}
+
+impl AxisFrame {
+    /// The scanner frame: facing +z, y up.
+    pub const SCANNER: AxisFrame = AxisFrame { facing: 4, up: 2 };
+
+    /// All 24 axis-aligned frames, the scanner frame first.
+    pub fn all() -> Vec<AxisFrame> {
+        let mut out = vec![Self::SCANNER];
+        for facing in 0..6 {
+            for up in 0..6 {
+                let f = AxisFrame { facing, up };
+                if up / 2 != facing / 2 && f != Self::SCANNER {
+                    out.push(f);
+                }
+            }
+        }
+        out
+    }
+
+    /// Name of the axis the face looks along, e.g. `+z`.
+    pub fn facing_name(&self) -> &'static str {
+        AXIS_NAMES[self.facing]
+    }
+
+    /// Name of the axis the forehead points to, e.g. `+y`.
+    pub fn up_name(&self) -> &'static str {
+        AXIS_NAMES[self.up]
+    }
+
+    /// The rotation from the scan frame into this frame's face frame (rows: x, y, z of the face).
+    pub fn face_from_scan(&self) -> DMat3 {
+        let z = axis(self.facing);
+        let y = axis(self.up);
+        let x = y.cross(z);
+        DMat3::from_cols(x, y, z).transpose()
+    }
+}
+
+/// The nearest axis-aligned frame to a rotation (what the JSON reports as `facing` / `up`).
+pub fn nearest_axis_frame(face_from_scan: DMat3) -> AxisFrame {
+    let pick = |v: DVec3| {
+        (0..6)
+            .max_by(|&a, &b| axis(a).dot(v).total_cmp(&axis(b).dot(v)))
+            .unwrap_or(4)
+    };
+    let scan_from_face = face_from_scan.transpose();
+    AxisFrame {
+        facing: pick(scan_from_face.z_axis),
+        up: pick(scan_from_face.y_axis),
+    }
+}
+
+/// Template points (generic face frame: nose tip at the origin, looking +z, y up), mm: every
+/// `step`-th generic vertex, above [`TEMPLATE_MIN_Y_MM`] only where `upper`.
+fn template(step: usize, upper: bool) -> Vec<DVec3> {
+    static GENERIC: OnceLock<Vec<DVec3>> = OnceLock::new();
+    GENERIC
+        .get_or_init(|| generic_face::build().mesh.positions_mm)
+        .iter()
+        .copied()
+        .filter(|p| !upper || p.y >= TEMPLATE_MIN_Y_MM)
+        .step_by(step)
+        .collect()
+}
+
+/// Every candidate is fitted with a sparse template (every 12th point); the winner is refitted
+/// and scored with a dense one (every 3rd).
+const COARSE_STEP: usize = 12;
+const FINE_STEP: usize = 3;
+/// A scanner-frame fit at least this face-like ends the search (real frontal scans: 0.6–0.85
+/// with the whole template).
+const CONFIDENT_FACE_LIKENESS: f64 = 0.7;
+/// ICP schedule: (iterations at most, pairs trimmed beyond this many mm).
+const COARSE_SCHEDULE: [(usize, f64); 3] = [(6, 15.0), (6, 9.0), (6, 6.0)];
+const FINE_SCHEDULE: [(usize, f64); 2] = [(6, 10.0), (8, 6.0)];
+
+/// The start frames, in stages: the scanner frame; the scanner frame with the head pitched
+/// ±30° or turned ±35° (the fit's reach from a start is about that); the 23 other axis frames.
+fn stages(search: bool) -> Vec<Vec<(DMat3, AxisFrame)>> {
+    let scanner = AxisFrame::SCANNER;
+    let mut out = vec![vec![(scanner.face_from_scan(), scanner)]];
+    if search {
+        let tilted = [
+            DMat3::from_rotation_x(30f64.to_radians()),
+            DMat3::from_rotation_x(-30f64.to_radians()),
+            DMat3::from_rotation_y(35f64.to_radians()),
+            DMat3::from_rotation_y(-35f64.to_radians()),
+        ];
+        out.push(tilted.iter().map(|&r| (r, scanner)).collect());
+        out.push(
+            AxisFrame::all()
+                .into_iter()
+                .skip(1)
+                .map(|f| (f.face_from_scan(), f))
+                .collect(),
+        );
+    }
+    out
+}
+
+/// Finds the face in `mesh` (any frame, mm). Fails only when nothing in any orientation
+/// protrudes like a nose; a scan whose best candidate is not face-like gets that candidate with
+/// its low face-likeness (the caller flags it).
+pub fn localise(mesh: &Mesh, params: &LocaliseParams) -> Result<Localisation> {
+    let index = SurfaceIndex::new(mesh, 2.0);
+    let vertices = VertexGrid::new(&mesh.positions_mm, VERTEX_GRID_CELL_MM);
+    let coarse = template(COARSE_STEP, true);
+    let coarse_all = template(COARSE_STEP, false);
+    let mut best: Option<(f64, DMat3, DVec3, AxisFrame)> = None;
+    let mut fitted = 0;
+    for (k, stage) in stages(params.search_orientations).into_iter().enumerate() {
+        // The scanner frame is trusted outright only with a clearly face-like fit; the tilted
+        // starts are tried otherwise (a strongly pitched head needs them); the other axis
+        // frames only where still nothing is face-like.
+        let enough = if k == 1 {
+            CONFIDENT_FACE_LIKENESS
+        } else {
+            params.face_likeness_min
+        };
+        if k > 0 && best.is_some_and(|b| b.0 >= enough) {
+            break;
+        }
+        for (face_from_scan, start) in stage {
+            for tip in nose_candidates(mesh, face_from_scan, params) {
+                fitted += 1;
+                let scan_from_face = face_from_scan.transpose();
+                let Some((rot, shift)) =
+                    icp(&vertices, &coarse, scan_from_face, tip, &COARSE_SCHEDULE)
+                else {
+                    continue;
+                };
+                let (likeness, _) = score(&vertices, &coarse_all, rot, shift, params.inlier_mm);
+                if best.is_none_or(|b| likeness > b.0) {
+                    best = Some((likeness, rot, shift, start));
+                }
+            }
+        }
+    }
+    let (_, rot, shift, start) = best.ok_or_else(|| {
+        Error::algorithm(
+            "landmarks: face localisation",
+            "nothing protrudes like a nose in any orientation of the scan",
+        )
+    })?;
+    let fine = template(FINE_STEP, true);
+    let (rot, shift) = icp(&index, &fine, rot, shift, &FINE_SCHEDULE).unwrap_or((rot, shift));
+    let (face_likeness, rms_mm) = score(
+        &index,
+        &template(FINE_STEP, false),
+        rot,
+        shift,
+        params.inlier_mm,
+    );
+    Ok(Localisation {
+        face_from_scan: rot.transpose(),
+        nose_tip_in_scan: shift,
+        face_likeness,
+        rms_mm,
+        start,
+        candidates_fitted: fitted,
+    })
+}
+
+/// Protrusion peaks of the mesh seen through `face_from_scan`, in the scan frame.
+fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) -> Vec<DVec3> {
+    const CELL: f64 = 3.0;
+    const DIRS: usize = 16;
+    const SEPARATION_MM: f64 = 30.0;
+    let pts: Vec<DVec3> = mesh
+        .positions_mm
+        .iter()
+        .map(|&p| face_from_scan * p)
+        .collect();
+    let Some((lo, hi)) = bounds(&pts) else {
+        return Vec::new();
+    };
+    let nx = ((hi.x - lo.x) / CELL) as usize + 1;
+    let ny = ((hi.y - lo.y) / CELL) as usize + 1;
+    if nx.saturating_mul(ny) > 4_000_000 {
+        return Vec::new();
+    }
+    // Front-most depth per cell: what a scanner looking along −z would see.
+    let mut top = vec![f64::NEG_INFINITY; nx * ny];
+    let cell_of = |q: DVec2| -> usize {
+        let i = (((q.x - lo.x) / CELL) as usize).min(nx - 1);
+        let j = (((q.y - lo.y) / CELL) as usize).min(ny - 1);
+        j * nx + i
+    };
+    for p in &pts {
+        let k = cell_of(p.truncate());
+        top[k] = top[k].max(p.z);
+    }
+    let at = |q: DVec2| -> Option<f64> {
+        if q.x < lo.x || q.y < lo.y || q.x > hi.x || q.y > hi.y {
+            return None;
+        }
+        let z = top[cell_of(q)];
+        (z > f64::NEG_INFINITY).then_some(z)
+    };
+    let r = params.probe_radius_mm;
+    let circle: Vec<DVec2> = (0..DIRS)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / DIRS as f64;
+            DVec2::new(a.cos(), a.sin()) * r
+        })
+        .collect();
+    let mut peaks: Vec<(f64, DVec3)> = Vec::new();
+    for (k, &z) in top.iter().enumerate() {
+        if z == f64::NEG_INFINITY {
+            continue;
+        }
+        let c = lo.truncate() + DVec2::new((k % nx) as f64 + 0.5, (k / nx) as f64 + 0.5) * CELL;
+        let ring: Vec<f64> = circle.iter().filter_map(|d| at(c + *d)).collect();
+        // Most of the circle must lie on the surface, and none of it in front of the peak.
+        if ring.len() * 8 < DIRS * 5 || ring.iter().any(|&h| h > z) {
+            continue;
+        }
+        let protrusion = z - ring.iter().sum::<f64>() / ring.len() as f64;
+        if protrusion >= params.min_protrusion_mm {
+            peaks.push((protrusion, DVec3::new(c.x, c.y, z)));
+        }
+    }
+    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut kept: Vec<DVec3> = Vec::new();
+    for (_, q) in peaks {
+        if kept
+            .iter()
+            .all(|k| (k.truncate() - q.truncate()).length() >= SEPARATION_MM)
+        {
+            kept.push(q);
+            if kept.len() == params.candidates {
+                break;
+            }
+        }
+    }
+    let scan_from_face = face_from_scan.transpose();
+    kept.into_iter().map(|q| scan_from_face * q).collect()
+}
+
+fn bounds(pts: &[DVec3]) -> Option<(DVec3, DVec3)> {
+    let first = *pts.first()?;
+    Some(
+        pts.iter()
+            .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))),
+    )
+}
+
+/// Rigid ICP of `template` (face frame) onto the scan from `rot` (scan from face) and `shift`
+/// (the template's origin, its nose tip, in the scan): closest points on the surface, Horn's
+/// rigid fit; per stage at most `iterations`, pairs trimmed beyond `trim_mm`. `None` when fewer
+/// than 30 points pair up.
+fn icp(
+    index: &impl Closest,
+    template: &[DVec3],
+    mut rot: DMat3,
+    mut shift: DVec3,
+    schedule: &[(usize, f64)],
+) -> Option<(DMat3, DVec3)> {
+    let (mut from, mut to) = (Vec::new(), Vec::new());
+    for &(iterations, trim_mm) in schedule {
+        for _ in 0..iterations {
+            from.clear();
+            to.clear();
+            for &g in template {
+                if let Some((_, c)) = index.closest(rot * g + shift, trim_mm) {
+                    from.push(g);
+                    to.push(c);
+                }
+            }
+            if from.len() < 30 {
+                return None;
+            }
+            let fit = horn_absolute_orientation(&from, &to, false).ok()?;
+            let new_rot = fit.rotation_matrix();
+            let moved = (fit.translation_mm - shift).length();
+            let cos_turned = ((new_rot.transpose() * rot).to_cols_array()[..]
+                .iter()
+                .step_by(4)
+                .sum::<f64>()
+                - 1.0)
+                / 2.0;
+            rot = new_rot;
+            shift = fit.translation_mm;
+            if moved < 0.01 && cos_turned > 1.0 - 1e-8 {
+                break;
+            }
+        }
+    }
+    Some((rot, shift))
+}
+
+/// The closest scan point within a distance: (distance, point).
+trait Closest {
+    fn closest(&self, p: DVec3, max_mm: f64) -> Option<(f64, DVec3)>;
+}
+
+impl Closest for SurfaceIndex {
+    fn closest(&self, p: DVec3, max_mm: f64) -> Option<(f64, DVec3)> {
+        SurfaceIndex::closest(self, p, max_mm)
+    }
+}
+
+/// Cell of [`VertexGrid`], mm: about two scanner samples.
+const VERTEX_GRID_CELL_MM: f64 = 3.0;
+
+/// Nearest scan *vertex* through a uniform grid: the candidates' coarse fits pair with vertices
+/// (a sample spacing of 1.5–3 mm moves a pair by under 1.5 mm, which a coarse fit does not
+/// notice) at a tenth of the cost of the exact point-on-triangle search; the winner is refitted
+/// and scored on the surface.
+struct VertexGrid<'a> {
+    points: &'a [DVec3],
+    lo: DVec3,
+    cell: f64,
+    dims: [usize; 3],
+    /// Vertex ids sorted by cell; `start[c]..start[c + 1]` are cell `c`'s.
+    start: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl<'a> VertexGrid<'a> {
+    fn new(points: &'a [DVec3], cell_mm: f64) -> Self {
+        let (lo, hi) = bounds(points).unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        // Cells grow until there are at most ~8 per point (a far-off stray point would
+        // otherwise ask for a huge grid).
+        let mut cell = cell_mm;
+        let count = |c: f64| [0, 1, 2].map(|k| ((hi[k] - lo[k]) / c) as usize + 1);
+        while count(cell).iter().product::<usize>() > 8 * points.len().max(512) {
+            cell *= 2.0;
+        }
+        let dims = count(cell);
+        let mut grid = VertexGrid {
+            points,
+            lo,
+            cell,
+            dims,
+            start: vec![0; dims[0] * dims[1] * dims[2] + 1],
+            ids: vec![0; points.len()],
+        };
+        let cells: Vec<usize> = points.iter().map(|&p| grid.cell_of(p)).collect();
+        for &c in &cells {
+            grid.start[c + 1] += 1;
+        }
+        for c in 1..grid.start.len() {
+            grid.start[c] += grid.start[c - 1];
+        }
+        let mut fill = grid.start.clone();
+        for (v, &c) in cells.iter().enumerate() {
+            grid.ids[fill[c] as usize] = v as u32;
+            fill[c] += 1;
+        }
+        grid
+    }
+
+    fn index(&self, p: DVec3) -> [i64; 3] {
+        [0, 1, 2].map(|k| ((p[k] - self.lo[k]) / self.cell).floor() as i64)
+    }
+
+    fn cell_of(&self, p: DVec3) -> usize {
+        let i = self.index(p);
+        let c = [0, 1, 2].map(|k| i[k].clamp(0, self.dims[k] as i64 - 1) as usize);
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+}
+
+impl Closest for VertexGrid<'_> {
+    fn closest(&self, p: DVec3, max_mm: f64) -> Option<(f64, DVec3)> {
+        let reach = (max_mm / self.cell).ceil() as i64;
+        let centre = self.index(p);
+        let mut best: Option<(f64, DVec3)> = None;
+        // Shells of cells outwards; stop once the next shell is farther than the best.
+        for r in 0..=reach {
+            if best.is_some_and(|(d, _)| d <= (r - 1).max(0) as f64 * self.cell) {
+                break;
+            }
+            let lo = [0, 1, 2].map(|k| (centre[k] - r).max(0));
+            let hi = [0, 1, 2].map(|k| (centre[k] + r).min(self.dims[k] as i64 - 1));
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let shell = [x, y, z]
+                            .iter()
+                            .zip(centre)
+                            .any(|(&a, c)| (a - c).abs() == r);
+                        if !shell {
+                            continue;
+                        }
+                        let c =
+                            (z as usize * self.dims[1] + y as usize) * self.dims[0] + x as usize;
+                        for &v in &self.ids[self.start[c] as usize..self.start[c + 1] as usize] {
+                            let q = self.points[v as usize];
+                            let d = q.distance(p);
+                            if d <= max_mm && best.is_none_or(|(b, _)| d < b) {
+                                best = Some((d, q));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Face-likeness (the fraction of `template` within `inlier_mm` of the scan) and the RMS
+/// distance of those points, mm.
+fn score(
+    index: &impl Closest,
+    template: &[DVec3],
+    rot: DMat3,
+    shift: DVec3,
+    inlier_mm: f64,
+) -> (f64, f64) {
+    let (mut inliers, mut sum2) = (0usize, 0.0);
+    for &g in template {
+        if let Some((d, _)) = index.closest(rot * g + shift, inlier_mm) {
+            inliers += 1;
+            sum2 += d * d;
+        }
+    }
+    let rms = if inliers > 0 {
+        (sum2 / inliers as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    (inliers as f64 / template.len().max(1) as f64, rms)
+}
+
+/// The rotation's yaw, pitch and roll of the head against the scanner frame, degrees (face
+/// frame = roll · pitch · yaw applied to the scan), for reports.
+pub fn yaw_pitch_roll_deg(face_from_scan: DMat3) -> (f64, f64, f64) {
+    let scan_from_face = face_from_scan.transpose();
+    let z = scan_from_face.z_axis; // the face's viewing direction in the scan
+    let y = scan_from_face.y_axis;
+    let yaw = z.x.atan2(z.z).to_degrees();
+    let pitch = (-z.y).atan2((z.x * z.x + z.z * z.z).sqrt()).to_degrees();
+    let roll = (-y.x).atan2(y.y).to_degrees();
+    (yaw, pitch, roll)
+}
+
+/// Names of the frame's axes for reports: the scan axis the face looks along and the one its
+/// forehead points to.
+pub fn facing_and_up(face_from_scan: DMat3) -> (&'static str, &'static str) {
+    let f = nearest_axis_frame(face_from_scan);
+    (f.facing_name(), f.up_name())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_24_axis_frames_are_distinct_rotations() {
+        let frames = AxisFrame::all();
+        assert_eq!(frames.len(), 24);
+        for (i, a) in frames.iter().enumerate() {
+            let r = a.face_from_scan();
+            assert!((r.determinant() - 1.0).abs() < 1e-12);
+            assert_eq!(nearest_axis_frame(r), *a);
+            for b in &frames[i + 1..] {
+                assert_ne!(r, b.face_from_scan());
+            }
+        }
+        assert_eq!(AxisFrame::SCANNER.face_from_scan(), DMat3::IDENTITY);
+    }
+
+    #[test]
+    fn the_generic_face_is_found_in_any_axis_frame_and_pose() {
+        let generic = generic_face::build().mesh;
+        let extra = DMat3::from_euler(glam::EulerRot::YXZ, 0.3, -0.2, 0.25);
+        for frame in [
+            AxisFrame::SCANNER,
+            AxisFrame { facing: 5, up: 2 },
+            AxisFrame { facing: 4, up: 0 },
+        ] {
+            let scan_from_face = (extra * frame.face_from_scan()).transpose();
+            let mut mesh = generic.clone();
+            let offset = DVec3::new(40.0, -300.0, 1000.0);
+            for p in &mut mesh.positions_mm {
+                *p = scan_from_face * *p + offset;
+            }
+            let found = localise(&mesh, &LocaliseParams::default()).unwrap();
+            assert!(found.face_likeness > 0.95, "{found:?}");
+            assert!(
+                (found.nose_tip_in_scan - offset).length() < 0.5,
+                "{found:?}"
+            );
+            let err = (found.face_from_scan * scan_from_face - DMat3::IDENTITY).abs();
+            assert!(err.to_cols_array().iter().all(|&e| e < 0.01), "{found:?}");
+        }
+    }
+}
