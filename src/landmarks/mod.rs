@@ -197,7 +197,8 @@ pub struct LandmarkParams {
     pub outer_eye_at_fissure: bool,
     /// Face localisation before the nine steps ([`localise`]): the face is found among
     /// candidates by its face-likeness, the scan is turned into its frame for the steps, and the
-    /// points are turned back. Default on; `None` runs the paper's steps on the scan as it is
+    /// points are turned back. Default off (`None`, opt-in: with it the landmark tests' accuracy
+    /// and real-scan expectations do not all hold yet); `None` runs the paper's steps on the scan as it is
     /// (scanner frame assumed, the largest front-facing region taken as the face).
     pub localise: Option<localise::LocaliseParams>,
 }
@@ -212,7 +213,8 @@ impl Default for LandmarkParams {
             nose_probe_radius_mm: 25.0,
             inner_eye_at_fissure: true,
             outer_eye_at_fissure: true,
-            localise: Some(localise::LocaliseParams::default()),
+            // Opt-in until the landmark tests pass with it (see docs/measurements.md).
+            localise: None,
         }
     }
 }
@@ -402,12 +404,6 @@ pub fn detect_with(
             topology.vertex_count()
         )));
     }
-    if n < MIN_FACE_VERTICES {
-        return Err(Error::algorithm(
-            "landmarks: facial segmentation",
-            format!("the scan has only {n} vertices; a face needs at least {MIN_FACE_VERTICES}"),
-        ));
-    }
     let Some(localise_params) = params.localise else {
         return Detector {
             mesh,
@@ -420,6 +416,12 @@ pub fn detect_with(
         }
         .run();
     };
+    if n < MIN_FACE_VERTICES {
+        return Err(Error::algorithm(
+            "landmarks: facial segmentation",
+            format!("the scan has only {n} vertices; a face needs at least {MIN_FACE_VERTICES}"),
+        ));
+    }
     let found = localise::localise(mesh, &localise_params)?;
     // The steps run on the scan turned into a frame whose z is the scanner's line of sight and
     // whose y is the located face's up (any roll and any axis convention taken out). Yaw and
