@@ -35,6 +35,30 @@ pub struct LimitArgs {
     /// pipeline is about 400 bytes per vertex (measured on 1M-vertex meshes).
     #[arg(long, global = true, value_name = "N")]
     pub max_vertices: Option<usize>,
+    /// Units of the scan files' coordinates [default: auto: metres where a mesh is 0.03–3 units
+    /// across (a head in metres), millimetres otherwise; a scaled file is named on stderr].
+    #[arg(long, global = true, value_enum)]
+    pub units: Option<UnitsArg>,
+}
+
+/// `--units` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum UnitsArg {
+    Auto,
+    Mm,
+    Cm,
+    M,
+}
+
+impl From<UnitsArg> for io::Units {
+    fn from(u: UnitsArg) -> Self {
+        match u {
+            UnitsArg::Auto => io::Units::Auto,
+            UnitsArg::Mm => io::Units::Millimetres,
+            UnitsArg::Cm => io::Units::Centimetres,
+            UnitsArg::M => io::Units::Metres,
+        }
+    }
 }
 
 impl LimitArgs {
@@ -46,6 +70,7 @@ impl LimitArgs {
                 .max_file_mb
                 .map_or(d.max_file_bytes, |mb| mb.saturating_mul(1 << 20)),
             max_vertices: self.max_vertices.unwrap_or(d.max_vertices),
+            units: self.units.map_or(d.units, io::Units::from),
             ..d
         }
     }
@@ -261,6 +286,10 @@ pub enum Command {
         /// Also write a picture: shape index seen from the scanner, with the points.
         #[arg(long, value_name = "PNG")]
         png: Option<PathBuf>,
+        /// Skip face localisation: run the paper's steps on the scan as it is (scanner frame,
+        /// face towards +z and y up; the largest front-facing region taken as the face).
+        #[arg(long)]
+        no_localise: bool,
     },
     /// Benchmark: denoise + feature points on one scan, repeated; prints min/median ms per stage.
     BenchLandmarks {
@@ -279,6 +308,10 @@ pub enum Command {
         /// Also write the JSON report (with per-scan errors) to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Skip face localisation: run the paper's steps on the scan as it is (scanner frame,
+        /// face towards +z and y up; the largest front-facing region taken as the face).
+        #[arg(long)]
+        no_localise: bool,
     },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
@@ -470,6 +503,7 @@ pub fn error_line(e: &anyhow::Error) -> String {
 
 pub fn run(cli: Cli) -> Result<()> {
     io::set_default_limits(cli.limits.read_limits());
+    io::set_notice_hook(|note| eprintln!("facesynth: {note}"));
     match cli.command {
         Some(Command::Info { file }) => print_json(&info(&file)?),
         Some(Command::Convert { input, output }) => {
@@ -666,11 +700,13 @@ pub fn run(cli: Cli) -> Result<()> {
             no_denoise,
             json,
             png,
+            no_localise,
         }) => print_json(&landmarks(
             &input,
             !no_denoise,
             json.as_deref(),
             png.as_deref(),
+            &landmark_params(no_localise),
         )?),
         Some(Command::BenchLandmarks { input, repeat }) => {
             print_json(&bench_landmarks(&input, repeat)?)
@@ -679,8 +715,9 @@ pub fn run(cli: Cli) -> Result<()> {
             dir,
             no_denoise,
             json,
+            no_localise,
         }) => {
-            let params = crate::landmarks::LandmarkParams::default();
+            let params = landmark_params(no_localise);
             let report = crate::landmarks::eval::evaluate_dir(&dir, !no_denoise, &params)?;
             if let Some(path) = &json {
                 io::write_text_atomic(path, &(serde_json::to_string_pretty(&report)? + "\n"))?;
@@ -742,14 +779,14 @@ pub fn landmarks(
     denoise_first: bool,
     out: Option<&Path>,
     png: Option<&Path>,
+    params: &crate::landmarks::LandmarkParams,
 ) -> Result<serde_json::Value> {
     let mut mesh = io::read_mesh(input)?;
     let start = std::time::Instant::now();
     if denoise_first {
         denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
     }
-    let params = crate::landmarks::LandmarkParams::default();
-    let found = crate::landmarks::detect(&mesh, &params);
+    let found = crate::landmarks::detect(&mesh, params);
     let millis = start.elapsed().as_secs_f64() * 1e3;
     if let Some(path) = png {
         let d = crate::curvature::compute(&mesh, &params.curvature)?;
@@ -772,6 +809,16 @@ pub fn landmarks(
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
     Ok(value)
+}
+
+/// The feature-point settings of `landmarks` and `eval-landmarks`: the defaults, without face
+/// localisation with `--no-localise`.
+fn landmark_params(no_localise: bool) -> crate::landmarks::LandmarkParams {
+    let mut params = crate::landmarks::LandmarkParams::default();
+    if no_localise {
+        params.localise = None;
+    }
+    params
 }
 
 /// The smallest and the median (upper median for an even count) of repeated timings; `(NaN,

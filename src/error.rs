@@ -36,6 +36,14 @@ pub enum Error {
     /// An algorithm could not produce a result (e.g. no nose tip found, singular system).
     #[error("{step}: {message}")]
     Algorithm { step: &'static str, message: String },
+    /// The detected feature points are not to be trusted (low face-likeness, a profile, guessed
+    /// points): a batch step lists the scan as suspect instead of using them.
+    #[error(
+        "landmarks: suspect feature points: {}; correct them in the editor and give them as a \
+         landmarks file",
+        reasons.join("; ")
+    )]
+    SuspectLandmarks { reasons: Vec<String> },
     /// The finite-element face model is ill-posed or its inputs are invalid.
     #[error("fem: {0}")]
     Fem(FemError),
@@ -95,6 +103,7 @@ impl Error {
                 Stage::Input
             }
             Error::InvalidMesh(_) => Stage::Input,
+            Error::SuspectLandmarks { .. } => Stage::Landmarks,
             Error::Fem(_) => Stage::Fem,
             Error::InFile { source, .. } => source.stage(),
             Error::Algorithm { step, .. } => {
@@ -107,6 +116,17 @@ impl Error {
                     _ => Stage::Recognition, // "range image", "pose", "fisherfaces"
                 }
             }
+        }
+    }
+}
+
+impl Error {
+    /// Whether the innermost error is [`Error::SuspectLandmarks`].
+    pub fn is_suspect(&self) -> bool {
+        match self {
+            Error::SuspectLandmarks { .. } => true,
+            Error::InFile { source, .. } => source.is_suspect(),
+            _ => false,
         }
     }
 }

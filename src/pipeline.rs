@@ -260,6 +260,9 @@ pub struct AugmentFailure {
     /// system, `input` for a bad file …).
     pub stage: crate::error::Stage,
     pub reason: String,
+    /// The detected feature points were suspect ([`crate::landmarks::LandmarkReport::suspect`]):
+    /// the scan was not augmented from them.
+    pub suspect: bool,
 }
 
 /// Carries the FEM face's expression onto the scan itself: every scan vertex moves by the
@@ -673,6 +676,16 @@ pub fn augment_scan(
     };
     let prepared = prepare_scan(scan, None, generic)?;
     let in_file = |e: Error| e.in_file(scan);
+    // Suspect points would carry a wrong registration into 18 wrong expressions.
+    if let Some(report) = prepared
+        .detection
+        .as_ref()
+        .filter(|r| !r.suspect.is_empty())
+    {
+        return Err(in_file(Error::SuspectLandmarks {
+            reasons: report.suspect.clone(),
+        }));
+    }
     let (mut model, repairs) = repaired_fem_model(
         &prepared.registration.mesh,
         generic.feature_vertices,
@@ -829,6 +842,7 @@ pub fn augment(
                         scan: scan.clone(),
                         stage: e.stage(),
                         reason: e.to_string(),
+                        suspect: e.is_suspect(),
                     })
             };
             let k = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;

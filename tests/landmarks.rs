@@ -171,17 +171,26 @@ fn detection_follows_ten_degree_rotations() {
         m.update_normals();
         let found = landmarks::detect(&m, &LandmarkParams::default())
             .unwrap_or_else(|e| panic!("{what}: {e}"));
-        // The symmetry line turns with a roll and stays put under yaw and pitch (measured: 0.5°
-        // off for the rolls, 2° for yaw +10°, 0 for pitch).
+        // The steps run in the located face's frame, so the roll is taken out before them: the
+        // symmetry line stays level, and the localisation reports the roll applied.
+        let sym = found.symmetry_roll_deg.expect("a symmetry line");
+        assert!(
+            (sym - level_roll).abs() <= 2.5,
+            "{what}: symmetry roll {sym:.1}°, level {level_roll:.1}°"
+        );
+        let roll = |r: &landmarks::LandmarkReport| {
+            landmarks::localise::yaw_pitch_roll_deg(r.localisation.unwrap().face_from_scan).2
+        };
         let turned = if what.starts_with("roll") {
             what[5..].parse::<f64>().unwrap()
         } else {
             0.0
         };
-        let sym = found.symmetry_roll_deg.expect("a symmetry line");
         assert!(
-            (sym - level_roll - turned).abs() <= 2.5,
-            "{what}: symmetry roll {sym:.1}°, level {level_roll:.1}°"
+            (roll(&found) - roll(&level) - turned).abs() <= 1.5,
+            "{what}: localised roll {:.1}°, level {:.1}°",
+            roll(&found),
+            roll(&level)
         );
         for (p, xyz, _) in truth.feature_points() {
             let want = pivot + r * (xyz - pivot);
@@ -223,8 +232,8 @@ fn real_scans_whose_biggest_eye_region_is_a_crease_keep_a_level_face() {
     use FeaturePoint::*;
     // On these two real scans one side's biggest concave region beside the nose bridge is a
     // lid crease, which tilted the eye line by 20° or more (the roll limit) and took the mouth
-    // and nose corners with it. The face's symmetry line sets the frame, and the inner corners
-    // come from the regions that agree with it.
+    // and nose corners with it. The located face's frame and its symmetry line set the frame,
+    // and the inner corners come from the regions that agree with it.
     for name in [
         "pointclouds/cara9_frontal2.txt",
         "pointclouds/cara46_frontal1_filtered_raw.txt",
@@ -232,11 +241,6 @@ fn real_scans_whose_biggest_eye_region_is_a_crease_keep_a_level_face() {
         let r =
             landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
         let sym = r.symmetry_roll_deg.expect("symmetry roll found");
-        assert!(
-            r.warnings.iter().any(|w| w.contains("symmetry line")),
-            "{name}: the crease was not questioned: {:?}",
-            r.warnings
-        );
         let eyes = r.landmarks.get(InnerEyeLeft) - r.landmarks.get(InnerEyeRight);
         let eye_roll = eyes.y.atan2(eyes.x).to_degrees();
         assert!(
@@ -285,29 +289,37 @@ fn real_gavabdb_frontal_scan_gives_an_anatomically_ordered_face() {
 #[test]
 fn real_scans_with_one_eye_corner_off_are_flagged_by_the_level_check() {
     // Seen in zoomed eye pictures: cara2_frontal2's right inner corner sits ~5 mm below the
-    // lid fissure, cara48_frontal1's left one on the nose's flank, 8–10 mm low. No other
-    // concave region gives a level pair, so detection keeps them; the level check flags the
-    // pair (Table 2 does not: both are within its ranges).
-    for (name, sign) in [
-        ("pointclouds/cara2_frontal2.txt", 1.0),
-        ("pointclouds/cara48_frontal1_filtered_raw.txt", -1.0),
-    ] {
-        let r =
-            landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
-        let inner = r.level.iter().find(|l| l.name == "inner_eye").unwrap();
-        assert!(
-            !inner.in_range && sign * inner.difference_mm > 6.0,
-            "{name}: inner corners {:.1} mm apart in height",
-            inner.difference_mm
-        );
-        assert!(
-            r.warnings
-                .iter()
-                .any(|w| w.starts_with("inner_eye_left/inner_eye_right")),
-            "{name}: {:?}",
-            r.warnings
-        );
-    }
+    // lid fissure. No other concave region gives a level pair, so detection keeps it; the level
+    // check flags the pair (Table 2 does not: both are within its ranges).
+    let name = "pointclouds/cara2_frontal2.txt";
+    let r = landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
+    let inner = r.level.iter().find(|l| l.name == "inner_eye").unwrap();
+    assert!(
+        !inner.in_range && inner.difference_mm > landmarks::LEVEL_MAX_MM,
+        "{name}: inner corners {:.1} mm apart in height",
+        inner.difference_mm
+    );
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.starts_with("inner_eye_left/inner_eye_right")),
+        "{name}: {:?}",
+        r.warnings
+    );
+    // cara48_frontal1's left corner was on the nose's flank, 8–10 mm low, in the scanner frame;
+    // in the located face's frame it is on the eye (4.4 mm from the independent detector's) and
+    // the pair is level, so nothing is flagged.
+    let name = "pointclouds/cara48_frontal1_filtered_raw.txt";
+    let r = landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
+    let inner = r.level.iter().find(|l| l.name == "inner_eye").unwrap();
+    assert!(inner.in_range, "{name}: {inner:?}");
+    assert!(
+        !r.warnings
+            .iter()
+            .any(|w| w.starts_with("inner_eye_left/inner_eye_right")),
+        "{name}: {:?}",
+        r.warnings
+    );
 }
 
 #[test]
@@ -329,10 +341,18 @@ fn meshes_without_a_face_are_typed_errors() {
     }
     let plate = Mesh::from_faces(p.clone(), f.clone());
     let e = landmarks::detect(&plate, &LandmarkParams::default()).unwrap_err();
-    assert!(e.to_string().contains("nose tip"), "{e}");
-    // Facing away from the scanner: no face region.
-    let back = Mesh::from_faces(p, f.iter().map(|q| [q[0], q[3], q[2], q[1]]));
+    assert!(e.to_string().contains("protrudes like a nose"), "{e}");
+    // Facing away from the scanner: no orientation shows a nose either.
+    let back = Mesh::from_faces(p.clone(), f.iter().map(|q| [q[0], q[3], q[2], q[1]]));
     let e = landmarks::detect(&back, &LandmarkParams::default()).unwrap_err();
+    assert!(e.to_string().contains("protrudes like a nose"), "{e}");
+    // Without localisation (the paper's steps on the scan as it is): no face region.
+    let paper = LandmarkParams {
+        localise: None,
+        ..LandmarkParams::default()
+    };
+    let back = Mesh::from_faces(p, f.iter().map(|q| [q[0], q[3], q[2], q[1]]));
+    let e = landmarks::detect(&back, &paper).unwrap_err();
     assert!(e.to_string().contains("segmentation"), "{e}");
     // An empty mesh.
     assert!(landmarks::detect(&Mesh::default(), &LandmarkParams::default()).is_err());
@@ -376,4 +396,62 @@ fn cheek_borders_are_level_and_where_the_generic_face_has_its_cheeks() {
         assert!(apart < 10.0, "{cheek:?} {apart} mm from {outer:?}");
     }
     assert!(g(CheekLeft).y < g(OuterEyeLeft).y && g(CheekLeft).y > g(MouthCornerLeft).y);
+}
+
+/// Real scans turned by known rotations (the head rolled, turned and pitched; the file's axes
+/// y-up facing −z, z-up, rolled 90°) give the same points, turned back, within 2 mm: face
+/// localisation finds the face's frame whatever the data's. The ten anatomical points; the
+/// cheek borders and the forehead (region borders, which can jump: measured 64 mm for one
+/// cheek of cara1_abajo rolled −20°) are printed, not asserted.
+#[test]
+fn real_scans_give_the_same_points_in_any_orientation() {
+    use std::f64::consts::FRAC_PI_2;
+    let deg = |d: f64| d.to_radians();
+    let rotations = [
+        ("roll +20", DMat3::from_rotation_z(deg(20.0))),
+        ("roll -20", DMat3::from_rotation_z(deg(-20.0))),
+        ("yaw +30", DMat3::from_rotation_y(deg(30.0))),
+        ("yaw -30", DMat3::from_rotation_y(deg(-30.0))),
+        ("pitch +25", DMat3::from_rotation_x(deg(25.0))),
+        ("pitch -25", DMat3::from_rotation_x(deg(-25.0))),
+        ("facing -z", DMat3::from_rotation_y(2.0 * FRAC_PI_2)),
+        ("z up", DMat3::from_rotation_x(FRAC_PI_2)),
+        ("rolled 90", DMat3::from_rotation_z(FRAC_PI_2)),
+    ];
+    let data = common::shared_dir().join("data");
+    for name in [
+        "gavabdb/cara1_frontal1.wrl",
+        "gavabdb/cara1_abajo.wrl",
+        "poldb/pol_2.wrl",
+    ] {
+        let base = denoised(&data.join(name));
+        let level = landmarks::detect(&base, &LandmarkParams::default()).unwrap();
+        let tip = level.landmarks.get(FeaturePoint::NoseTip);
+        let pivot = tip - DVec3::new(0.0, 0.0, 90.0);
+        for (what, r) in rotations {
+            let mut m = base.clone();
+            for p in &mut m.positions_mm {
+                *p = r * (*p - pivot) + DVec3::new(10.0, -20.0, 30.0);
+            }
+            m.update_normals();
+            let found = landmarks::detect(&m, &LandmarkParams::default())
+                .unwrap_or_else(|e| panic!("{name} {what}: {e}"));
+            let mut worst = (0.0, FeaturePoint::NoseTip);
+            for p in FeaturePoint::ALL {
+                let back = r.transpose() * (found.landmarks.get(p) - DVec3::new(10.0, -20.0, 30.0))
+                    + pivot;
+                let err = (back - level.landmarks.get(p)).length();
+                println!("{name} {what}: {p} {err:.2} mm");
+                if !FeaturePoint::BORDER.contains(&p) && err > 2.0 && err > worst.0 {
+                    worst = (err, p);
+                }
+            }
+            assert!(
+                worst.0 == 0.0,
+                "{name} {what}: {} off by {:.1} mm",
+                worst.1,
+                worst.0
+            );
+        }
+    }
 }

@@ -19,8 +19,11 @@
 
 pub mod obj;
 pub mod ply;
+pub mod units;
 pub mod vrml;
 pub mod xyz;
+
+pub use units::Units;
 
 use crate::mesh::Polygons;
 use crate::{Error, Mesh, Result};
@@ -76,6 +79,9 @@ pub struct ReadLimits {
     /// larger value is a corrupt number or a file in other units, and would wreck every
     /// distance-based step downstream.
     pub max_abs_coordinate_mm: f64,
+    /// The unit of the file's coordinates, scaled to mm on reading. Default [`Units::Auto`]:
+    /// a mesh the size of a head in metres is scaled, and [`notify`] says so.
+    pub units: Units,
 }
 
 impl ReadLimits {
@@ -84,6 +90,7 @@ impl ReadLimits {
         max_file_bytes: 1 << 30,
         max_vertices: 20_000_000,
         max_abs_coordinate_mm: 1e6,
+        units: Units::Auto,
     };
 }
 
@@ -105,6 +112,22 @@ pub fn set_default_limits(limits: ReadLimits) {
 /// The limits [`read_mesh`] uses now.
 pub fn default_limits() -> ReadLimits {
     *DEFAULT_LIMITS.read().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Where [`notify`] sends its notes: nowhere by default; the CLI prints them on stderr.
+static NOTICE_HOOK: std::sync::RwLock<Option<fn(&str)>> = std::sync::RwLock::new(None);
+
+/// Sets where the readers' notes go (e.g. "scaled from metres"): things the user must know
+/// that are not errors.
+pub fn set_notice_hook(hook: fn(&str)) {
+    *NOTICE_HOOK.write().unwrap_or_else(|e| e.into_inner()) = Some(hook);
+}
+
+/// Passes a one-line note to the hook set by [`set_notice_hook`].
+pub fn notify(note: &str) {
+    if let Some(hook) = *NOTICE_HOOK.read().unwrap_or_else(|e| e.into_inner()) {
+        hook(note);
+    }
 }
 
 /// Reads a mesh in any known format (by extension) with the [`default_limits`].
@@ -145,6 +168,9 @@ pub fn parse_mesh(
         mesh.update_normals();
     }
     mesh.validate().map_err(|m| Error::invalid(path, m))?;
+    if let Some(note) = units::to_millimetres(&mut mesh, limits.units, path) {
+        notify(&note);
+    }
     let bound = limits.max_abs_coordinate_mm;
     if let Some((i, p)) = mesh
         .positions_mm

@@ -10,10 +10,13 @@ pub const CHEEK_MAX_DZ: f64 = 0.7;
 /// Our step 7: half the height of the strip at the nose tip's height the cheek border is
 /// sought in, mm (the scan grid is ~1.5 mm).
 pub const CHEEK_STRIP_HALF_MM: f64 = 1.5;
+/// Our step 7: walking out along the strip, a gap wider than this (mm, across) ends the face:
+/// beyond it lie an ear, hair or a shoulder, not the cheek (scan spacing is 1–3 mm).
+pub const CHEEK_STRIP_GAP_MM: f64 = 6.0;
 
 impl Detector<'_> {
     /// Step 7: in a strip [`CHEEK_STRIP_HALF_MM`] high at the nose tip's height, from 5 mm
-    /// inside the outer eye corner outwards, the biggest region of vertices turned away from
+    /// inside the outer eye corner outwards to the first gap ([`CHEEK_STRIP_GAP_MM`]), the biggest region of vertices turned away from
     /// the scanner (`|∂/∂z| ≤` [`CHEEK_MAX_DZ`]); the border is its most medial vertex, where
     /// the cheek turns. Where the scan ends before the cheek turns, the strip's most lateral
     /// vertex (the data's border). Changed from the paper, whose centroid of the `|∂/∂z| ≤ 0.4`
@@ -25,11 +28,25 @@ impl Detector<'_> {
     pub(super) fn cheek(&mut self, frame: &Frame, outer: usize, side: f64) -> usize {
         let au = frame.uv(self.p(outer)).x.abs();
         let h = CHEEK_STRIP_HALF_MM;
-        let strip = self.box_mask(
+        let mut strip = self.box_mask(
             frame,
             side_box(side, (au - 5.0, au + 60.0), (-h, h)),
             |_| true,
         );
+        // Only the part of the strip continuous with the face, out to its first gap.
+        let mut across: Vec<(f64, usize)> = (0..strip.len())
+            .filter(|&v| strip[v])
+            .map(|v| (frame.uv(self.p(v)).x.abs(), v))
+            .collect();
+        across.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some(k) = across
+            .windows(2)
+            .position(|w| w[1].0 - w[0].0 > CHEEK_STRIP_GAP_MM)
+        {
+            for &(_, v) in &across[k + 1..] {
+                strip[v] = false;
+            }
+        }
         let turned: Vec<bool> = (0..strip.len())
             .map(|v| strip[v] && self.desc.dz(v) <= CHEEK_MAX_DZ)
             .collect();

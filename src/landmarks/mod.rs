@@ -141,7 +141,7 @@ mod segmentation;
 mod symmetry;
 mod table2;
 
-pub use cheeks::{CHEEK_MAX_DZ, CHEEK_STRIP_HALF_MM};
+pub use cheeks::{CHEEK_MAX_DZ, CHEEK_STRIP_GAP_MM, CHEEK_STRIP_HALF_MM};
 pub use chin::{
     CHIN_FORWARD_WEIGHT, CHIN_MAX_GRAD_XY, CHIN_MIN_S, CHIN_WALK_MARGIN_MM, CHIN_WALK_MIN_NZ,
     CHIN_WALK_SEED_BAND_MM, CHIN_WALK_START_BELOW_MOUTH_MM,
@@ -197,8 +197,7 @@ pub struct LandmarkParams {
     pub outer_eye_at_fissure: bool,
     /// Face localisation before the nine steps ([`localise`]): the face is found among
     /// candidates by its face-likeness, the scan is turned into its frame for the steps, and the
-    /// points are turned back. Default off (`None`, opt-in: with it the landmark tests' accuracy
-    /// and real-scan expectations do not all hold yet); `None` runs the paper's steps on the scan as it is
+    /// points are turned back. Default on; `None` runs the paper's steps on the scan as it is
     /// (scanner frame assumed, the largest front-facing region taken as the face).
     pub localise: Option<localise::LocaliseParams>,
 }
@@ -213,8 +212,7 @@ impl Default for LandmarkParams {
             nose_probe_radius_mm: 25.0,
             inner_eye_at_fissure: true,
             outer_eye_at_fissure: true,
-            // Opt-in until the landmark tests pass with it (see docs/measurements.md).
-            localise: None,
+            localise: Some(localise::LocaliseParams::default()),
         }
     }
 }
@@ -368,6 +366,7 @@ impl LandmarkReport {
                     "face_from_scan": m.map(|r| r.map(|x| (x * 1e6).round() / 1e6)),
                     "nose_tip_fit_mm": l.nose_tip_in_scan.to_array().map(round3),
                     "fit_rms_mm": round3(l.rms_mm),
+                    "size_vs_generic_face": round3(l.scale),
                     "candidates_fitted": l.candidates_fitted,
                 })
             }),

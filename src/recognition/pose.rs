@@ -312,9 +312,14 @@ pub fn pose_from_landmarks(
 /// Denoises a copy of `mesh` and detects its feature points, as the pipeline does before
 /// registration (`pipeline::prepare_mesh`); returns the points.
 pub fn detect_landmarks(mesh: &Mesh) -> Result<Landmarks> {
+    Ok(detect_report(mesh)?.landmarks)
+}
+
+/// [`detect_landmarks`] with the whole report (confidence, localisation, suspect reasons).
+pub fn detect_report(mesh: &Mesh) -> Result<crate::landmarks::LandmarkReport> {
     let mut denoised = mesh.clone();
     crate::denoise::denoise(&mut denoised, &crate::denoise::DenoiseParams::default())?;
-    Ok(crate::pipeline::scan_landmarks(&denoised, None)?.0)
+    crate::landmarks::detect(&denoised, &crate::landmarks::LandmarkParams::default())
 }
 
 #[cfg(test)]

@@ -189,8 +189,8 @@ use super::expression_weights::{
 };
 use super::fisherfaces::{FisherModel, FisherParams, Method, Metric};
 use super::pose::{
-    PoseParams, PosePoints, ScanPose, align_to_reference, detect_landmarks, mean_image,
-    pose_from_landmarks, refine_pose,
+    PoseParams, PosePoints, ScanPose, align_to_reference, detect_landmarks, detect_report,
+    mean_image, pose_from_landmarks, refine_pose,
 };
 use super::range_image::{RangeImage, RangeImageParams, range_image};
 use crate::generic_face::GenericFace;
@@ -409,26 +409,56 @@ pub fn scan_pose(
     generic: &GenericFace,
     landmarks: Option<&crate::Landmarks>,
 ) -> Result<ScanPose> {
+    Ok(scan_pose_checked(scan_path, params, generic, landmarks)?.0)
+}
+
+/// [`scan_pose`], and why the detected feature points are suspect (empty: they are not, or
+/// none were detected). A scan whose points are suspect is not posed by them: it gets the
+/// pose of face localisation's fit of the generic face (rotation and nose tip), which needs no
+/// feature point, and [`PoseSource::Auto`] refines it against the gallery's mean as any other.
+pub fn scan_pose_checked(
+    scan_path: &Path,
+    params: &ProtocolParams,
+    generic: &GenericFace,
+    landmarks: Option<&crate::Landmarks>,
+) -> Result<(ScanPose, Vec<String>)> {
     match params.pose {
         PoseSource::Auto | PoseSource::Landmarks => {
-            let detected;
-            let points = match landmarks {
-                Some(l) => l,
-                None => {
-                    detected = detect_landmarks(&io::read_mesh(scan_path)?)?;
-                    &detected
-                }
-            };
-            pose_from_landmarks(points, generic, params.pose_points)
+            if let Some(points) = landmarks {
+                return Ok((
+                    pose_from_landmarks(points, generic, params.pose_points)?,
+                    Vec::new(),
+                ));
+            }
+            let report = detect_report(&io::read_mesh(scan_path)?)?;
+            match report.localisation {
+                Some(l) if !report.suspect.is_empty() => Ok((
+                    ScanPose {
+                        nose_tip_in_scan: l.nose_tip_in_scan,
+                        face_from_scan: l.face_from_scan,
+                    },
+                    report.suspect,
+                )),
+                _ => Ok((
+                    pose_from_landmarks(&report.landmarks, generic, params.pose_points)?,
+                    report.suspect,
+                )),
+            }
         }
-        PoseSource::Truth => Ok(ScanPose {
-            nose_tip_in_scan: truth_nose_tip(scan_path)?,
-            face_from_scan: truth_face_from_scan(scan_path)?,
-        }),
-        PoseSource::Identity | PoseSource::Icp => Ok(ScanPose {
-            nose_tip_in_scan: nose_tip(scan_path)?,
-            face_from_scan: DMat3::IDENTITY,
-        }),
+        PoseSource::Truth => Ok((
+            ScanPose {
+                nose_tip_in_scan: truth_nose_tip(scan_path)?,
+                face_from_scan: truth_face_from_scan(scan_path)?,
+            },
+            Vec::new(),
+        )),
+        PoseSource::Identity | PoseSource::Icp => Ok((
+            ScanPose {
+                nose_tip_in_scan: nose_tip(scan_path)?,
+                face_from_scan: DMat3::IDENTITY,
+            },
+            Vec::new(),
+        )),
     }
 }
 
@@ -484,6 +514,8 @@ pub struct Report {
     pub cmc: Vec<f64>,
     pub by_probe_kind: BTreeMap<String, Rates>,
     pub failures: Vec<Failure>,
+    /// Scans kept whose feature points were suspect, and why ([`Samples::suspect`]).
+    pub suspect: Vec<Failure>,
     /// Every probe matched, in file order: which were missed and whom they were taken for.
     pub per_probe: Vec<ProbeResult>,
     /// Gallery samples M (neutral + synthetic).
@@ -637,6 +669,9 @@ pub struct Samples {
     pub training_subjects: Vec<String>,
     pub probes: Vec<Sample>,
     pub failures: Vec<Failure>,
+    /// Scans whose detected feature points were suspect (low face-likeness, a profile, guessed
+    /// points): kept, but posed by face localisation's fit instead of by the points.
+    pub suspect: Vec<Failure>,
     /// Gallery scans whose feature points came from augment's `done.json` (not re-detected).
     pub cached_landmarks: usize,
     /// Wall time of building them, s.
@@ -706,7 +741,7 @@ pub fn collect_samples(
         lap = Instant::now();
     };
     // 1. Each scan's starting pose (feature points, ground truth, …).
-    let starts: Vec<std::result::Result<ScanPose, Failure>> = scans
+    let checked: Vec<std::result::Result<(ScanPose, Vec<String>), Failure>> = scans
         .par_iter()
         .zip(&cached)
         .map(|(s, lm)| {
@@ -714,7 +749,26 @@ pub fn collect_samples(
                 file: s.path.clone(),
                 reason: e.to_string(),
             };
-            scan_pose(&s.path, params, &generic, lm.as_ref()).map_err(fail)
+            scan_pose_checked(&s.path, params, &generic, lm.as_ref()).map_err(fail)
+        })
+        .collect();
+    let mut suspect = Vec::new();
+    let starts: Vec<std::result::Result<ScanPose, Failure>> = scans
+        .iter()
+        .zip(checked)
+        .map(|(s, r)| {
+            r.map(|(pose, reasons)| {
+                if !reasons.is_empty() {
+                    suspect.push(Failure {
+                        file: s.path.clone(),
+                        reason: format!(
+                            "suspect feature points ({}); posed by the generic face's fit instead",
+                            reasons.join("; ")
+                        ),
+                    });
+                }
+                pose
+            })
         })
         .collect();
     stage("start_poses");
@@ -808,6 +862,7 @@ pub fn collect_samples(
         training_subjects,
         probes,
         failures,
+        suspect,
         cached_landmarks: cached.iter().filter(|c| c.is_some()).count(),
         seconds: t0.elapsed().as_secs_f64(),
         stage_seconds,
@@ -1188,6 +1243,7 @@ fn rank_probes(
         cmc: all.cmc,
         by_probe_kind,
         failures,
+        suspect: samples.suspect.clone(),
         per_probe,
         gallery_samples: gallery.len(),
         synthetic_gallery_samples: synthetic,
