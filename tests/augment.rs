@@ -353,3 +353,35 @@ fn the_recipe_records_the_muscles_and_a_bad_muscle_file_is_refused_before_any_wo
     assert!(err.contains("muscles.ron"), "{err}");
     assert!(!out_dir.exists(), "no output folder for refused settings");
 }
+
+/// A gallery scan whose detected points are suspect (here a real profile, cara1_derecha, turned
+/// 44°) is listed in `failures.json` as suspect with its reasons, and nothing is augmented
+/// from it.
+#[test]
+fn a_suspect_gallery_scan_is_listed_not_augmented() {
+    let gallery = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        common::gavab("cara1_derecha.wrl"),
+        gallery.path().join("cara1_frontal1.wrl"),
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let quiet = |_: usize, _: usize, _: &str| {};
+    let (done, failed) = pipeline::augment(
+        gallery.path(),
+        out.path(),
+        &AugmentParams::default(),
+        &quiet,
+    )
+    .unwrap();
+    assert!(done.is_empty());
+    assert_eq!(failed.len(), 1);
+    assert!(failed[0].suspect, "{:?}", failed[0]);
+    assert!(failed[0].reason.contains("turned"), "{}", failed[0].reason);
+    let listed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("failures.json")).unwrap())
+            .unwrap();
+    assert_eq!(listed[0]["suspect"], true);
+    assert_eq!(listed[0]["stage"], "landmarks");
+    assert!(!out.path().join("cara1_frontal1").join(DONE_MARKER).exists());
+}

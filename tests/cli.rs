@@ -170,3 +170,37 @@ fn bench_landmarks_reports_stage_times() {
         assert!(v[k]["min"].as_f64().unwrap() > 0.0, "{k}");
     }
 }
+
+/// A real scan exported in metres (a face 0.2 units wide, as a real head scan came) is scaled
+/// to millimetres, said on stderr with the file's name, and gives the points of the
+/// millimetre scan; `--units mm` reads it as it is and then finds no face.
+#[test]
+fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = common::gavab("cara1_frontal1.wrl");
+    let mut mesh = facesynth::io::read_mesh(&src).unwrap();
+    for p in &mut mesh.positions_mm {
+        *p *= 0.001;
+    }
+    let metres = dir.path().join("head_in_metres.ply");
+    facesynth::io::write_mesh(&metres, &mesh).unwrap();
+    let mm = json_of(&facesynth(&["landmarks", src.to_str().unwrap()]));
+    let out = facesynth(&["landmarks", metres.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("head_in_metres.ply") && stderr.contains("metres"),
+        "{stderr}"
+    );
+    let scaled = json_of(&out);
+    for (name, p) in mm["landmarks"].as_object().unwrap() {
+        let q = &scaled["landmarks"][name];
+        let d: f64 = (0..3)
+            .map(|k| (p[k].as_f64().unwrap() - q[k].as_f64().unwrap()).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // PLY stores single precision: 1e-3 m ~ 1e-4 mm relative; the points agree to 0.1 mm.
+        assert!(d < 0.1, "{name}: {d} mm apart");
+    }
+    let out = facesynth(&["landmarks", metres.to_str().unwrap(), "--units", "mm"]);
+    assert!(!out.status.success());
+}

@@ -455,3 +455,80 @@ fn real_scans_give_the_same_points_in_any_orientation() {
         }
     }
 }
+
+/// Made-harder real scans: a torso (a broad surface below the chin that bulges further towards
+/// the scanner than the nose) or a hair cap (a bumpy dome over the forehead) added to a real
+/// scan does not move the ten anatomical points by more than 2 mm.
+#[test]
+fn clutter_below_the_chin_or_over_the_forehead_does_not_move_the_points() {
+    let base = denoised(&common::gavab("cara1_frontal1.wrl"));
+    let level = landmarks::detect(&base, &LandmarkParams::default()).unwrap();
+    let tip = level.landmarks.get(FeaturePoint::NoseTip);
+    let chin = level.landmarks.get(FeaturePoint::Chin);
+    let forehead = level.landmarks.get(FeaturePoint::Forehead);
+    // A patch sampled every 2 mm over (u, v) ∈ [u0, u1] × [v0, v1], depth z(u, v).
+    let patch = |m: &mut Mesh, u: (f64, f64), v: (f64, f64), z: &dyn Fn(f64, f64) -> f64| {
+        let (nu, nv) = (((u.1 - u.0) / 2.0) as u32, ((v.1 - v.0) / 2.0) as u32);
+        let first = m.positions_mm.len() as u32;
+        let mut faces = Vec::new();
+        for j in 0..=nv {
+            for i in 0..=nu {
+                let (x, y) = (u.0 + 2.0 * i as f64, v.0 + 2.0 * j as f64);
+                m.positions_mm.push(DVec3::new(x, y, z(x, y)));
+                if i < nu && j < nv {
+                    let k = first + j * (nu + 1) + i;
+                    faces.push([k, k + 1, k + nu + 2, k + nu + 1]);
+                }
+            }
+        }
+        for f in faces {
+            m.faces.push(&f);
+        }
+        m.update_normals();
+    };
+    // Torso: 360 mm wide, from 40 mm below the chin down 200 mm, its front 15 mm in front of
+    // the nose tip (a chest seen from a scanner level with the face), rounded to the sides.
+    let mut torso = base.clone();
+    let top = chin.y - 40.0;
+    patch(
+        &mut torso,
+        (tip.x - 180.0, tip.x + 180.0),
+        (top - 200.0, top),
+        &|x, _| tip.z + 15.0 - ((x - tip.x) / 60.0).powi(2) * 10.0,
+    );
+    // Hair cap: a bumpy dome from 20 mm above the forehead point, 200 mm wide, 10 mm in front
+    // of the brow's depth.
+    let mut hair = base.clone();
+    let low = forehead.y + 20.0;
+    patch(
+        &mut hair,
+        (tip.x - 100.0, tip.x + 100.0),
+        (low, low + 80.0),
+        &|x, y| {
+            forehead.z + 10.0 - ((x - tip.x) / 50.0).powi(2) * 8.0 - (y - low) * 0.3
+                + 3.0 * (x * 0.3).sin() * (y * 0.25).cos()
+        },
+    );
+    // The torso is clutter that fools the paper's steps alone (largest front-facing region,
+    // most protruding point: measured 127 mm off).
+    let paper = LandmarkParams {
+        localise: None,
+        ..LandmarkParams::default()
+    };
+    let fooled = landmarks::detect(&torso, &paper).map_or(f64::INFINITY, |r| {
+        (r.landmarks.get(FeaturePoint::NoseTip) - tip).length()
+    });
+    assert!(fooled > 30.0, "the torso did not fool the paper's steps");
+    for (what, m) in [("torso", torso), ("hair cap", hair)] {
+        let found = landmarks::detect(&m, &LandmarkParams::default())
+            .unwrap_or_else(|e| panic!("{what}: {e}"));
+        for p in FeaturePoint::ALL {
+            if FeaturePoint::BORDER.contains(&p) {
+                continue;
+            }
+            let err = (found.landmarks.get(p) - level.landmarks.get(p)).length();
+            assert!(err <= 2.0, "{what}: {p} moved {err:.1} mm");
+        }
+        assert!(found.suspect.is_empty(), "{what}: {:?}", found.suspect);
+    }
+}

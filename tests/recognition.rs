@@ -331,3 +331,26 @@ fn expression_training_without_augmentation_is_refused() {
         "{err}"
     );
 }
+
+/// A scan whose detected points are suspect (a real profile, cara1_derecha, turned 44°) is not
+/// posed by them: it gets face localisation's pose, which sees the head turned, and the
+/// reasons; a frontal scan is posed by its points and has none.
+#[test]
+fn a_suspect_scan_is_posed_by_the_generic_face_fit() {
+    let generic = facesynth::generic_face::build();
+    let params = ProtocolParams::default();
+    let (pose, reasons) =
+        protocol::scan_pose_checked(&common::gavab("cara1_derecha.wrl"), &params, &generic, None)
+            .unwrap();
+    assert!(reasons.iter().any(|r| r.contains("turned")), "{reasons:?}");
+    let (yaw, _, _) = facesynth::landmarks::localise::yaw_pitch_roll_deg(pose.face_from_scan);
+    assert!(yaw.abs() > 30.0, "yaw {yaw}");
+    let (_, reasons) = protocol::scan_pose_checked(
+        &common::gavab("cara1_frontal1.wrl"),
+        &params,
+        &generic,
+        None,
+    )
+    .unwrap();
+    assert!(reasons.is_empty(), "{reasons:?}");
+}
