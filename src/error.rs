@@ -95,6 +95,15 @@ pub enum Stage {
 }
 
 impl Error {
+    /// Whether the innermost error is [`Error::SuspectLandmarks`].
+    pub fn is_suspect(&self) -> bool {
+        match self {
+            Error::SuspectLandmarks { .. } => true,
+            Error::InFile { source, .. } => source.is_suspect(),
+            _ => false,
+        }
+    }
+
     /// Which step failed (the innermost error decides).
     pub fn stage(&self) -> Stage {
         match self {
@@ -116,17 +125,6 @@ impl Error {
                     _ => Stage::Recognition, // "range image", "pose", "fisherfaces"
                 }
             }
-        }
-    }
-}
-
-impl Error {
-    /// Whether the innermost error is [`Error::SuspectLandmarks`].
-    pub fn is_suspect(&self) -> bool {
-        match self {
-            Error::SuspectLandmarks { .. } => true,
-            Error::InFile { source, .. } => source.is_suspect(),
-            _ => false,
         }
     }
 }

@@ -1262,6 +1262,17 @@ impl SurfaceIndex {
                             {
                                 let [a, b, cc] =
                                     self.triangles[t as usize].map(|v| self.positions[v as usize]);
+                                // A triangle whose bounding box is no nearer than the best
+                                // so far cannot beat it (and a triangle spanning several
+                                // cells comes up once per cell).
+                                if let Some((bd, _)) = best {
+                                    let gap = (a.min(b).min(cc) - p)
+                                        .max(p - a.max(b).max(cc))
+                                        .max(DVec3::ZERO);
+                                    if gap.length_squared() >= bd {
+                                        continue;
+                                    }
+                                }
                                 let q = closest_point_on_triangle(p, a, b, cc);
                                 let d2 = q.distance_squared(p);
                                 if best.is_none_or(|(bd, _)| d2 < bd) {

@@ -16,8 +16,9 @@ pub const CHEEK_STRIP_GAP_MM: f64 = 6.0;
 
 impl Detector<'_> {
     /// Step 7: in a strip [`CHEEK_STRIP_HALF_MM`] high at the nose tip's height, from 5 mm
-    /// inside the outer eye corner outwards to the first gap ([`CHEEK_STRIP_GAP_MM`]), the biggest region of vertices turned away from
-    /// the scanner (`|∂/∂z| ≤` [`CHEEK_MAX_DZ`]); the border is its most medial vertex, where
+    /// inside the outer eye corner outwards to the first gap ([`CHEEK_STRIP_GAP_MM`]), the
+    /// biggest region of vertices turned away from the scanner (`|∂/∂z| ≤`
+    /// [`CHEEK_MAX_DZ`]); the border is its most medial vertex, where
     /// the cheek turns. Where the scan ends before the cheek turns, the strip's most lateral
     /// vertex (the data's border). Changed from the paper, whose centroid of the `|∂/∂z| ≤ 0.4`
     /// region anywhere between the eyes' and mouth's heights landed at eye height on one side

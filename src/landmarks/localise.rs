@@ -88,7 +88,8 @@ pub struct Localisation {
     pub face_from_scan: DMat3,
     /// The generic face's nose tip after the fit, in the scan frame, mm (a prior for step 2).
     pub nose_tip_in_scan: DVec3,
-    /// The face's size against the generic face's (the fit's isotropic scale, 0.8–1.25).
+    /// The face's size against the generic face's (the fit's isotropic scale, within
+    /// [`SCALE_RANGE`]).
     pub scale: f64,
     /// Fraction of the template within [`LocaliseParams::inlier_mm`] of the scan, 0–1.
     pub face_likeness: f64,
@@ -184,42 +185,13 @@ fn template(step: usize, upper: bool) -> Vec<(DVec3, DVec3)> {
         .collect()
 }
 
-/// Every candidate is fitted with a sparse template (every 12th point); the winner is refitted
-/// and scored with a dense one (every 3rd).
+/// Every candidate is fitted with a sparse template (every 12th point); the finalists are
+/// refitted and scored with a dense one (every 3rd).
 const COARSE_STEP: usize = 12;
 const FINE_STEP: usize = 3;
 /// A scanner-frame fit at least this face-like ends the search (real frontal scans: 0.6–0.85
 /// with the whole template).
 const CONFIDENT_FACE_LIKENESS: f64 = 0.7;
-/// ICP schedules of the candidates' fits and of the winner's refit.
-const COARSE_SCHEDULE: [IcpStage; 3] = [
-    IcpStage {
-        iterations: 6,
-        trim_mm: 15.0,
-        plane: false,
-    },
-    IcpStage {
-        iterations: 6,
-        trim_mm: 9.0,
-        plane: false,
-    },
-    IcpStage {
-        iterations: 6,
-        trim_mm: 6.0,
-        plane: true,
-    },
-];
-/// A candidate's rigid fit.
-#[derive(Debug, Clone, Copy)]
-struct Fit {
-    /// Face-likeness (coarse: on the vertices, sparse template; refit: on the surface, dense).
-    likeness: f64,
-    pose: Pose,
-    start: AxisFrame,
-    /// Started from the scanner frame itself (not tilted, not another axis frame).
-    scanner_frame: bool,
-}
-
 /// Added to the face-likeness of a fit started in the scanner frame when candidates are
 /// ranked: another must be this much more face-like to win.
 const SCANNER_FRAME_PRIOR: f64 = 0.1;
@@ -229,18 +201,24 @@ const FINALISTS: usize = 3;
 /// directions within ~18° (cosine).
 const DISTINCT_FIT_MM: f64 = 10.0;
 const DISTINCT_FIT_COS: f64 = 0.95;
-const FINE_SCHEDULE: [IcpStage; 2] = [
-    IcpStage {
-        iterations: 6,
-        trim_mm: 10.0,
-        plane: false,
-    },
-    IcpStage {
-        iterations: 8,
-        trim_mm: 6.0,
-        plane: true,
-    },
+/// ICP schedules of the candidates' fits and of the finalists' refits.
+const COARSE_SCHEDULE: [IcpStage; 3] = [
+    IcpStage::points(6, 15.0),
+    IcpStage::points(6, 9.0),
+    IcpStage::plane(6, 6.0),
 ];
+const FINE_SCHEDULE: [IcpStage; 2] = [IcpStage::points(6, 10.0), IcpStage::plane(8, 6.0)];
+
+/// A candidate's fit.
+#[derive(Debug, Clone, Copy)]
+struct Fit {
+    /// Face-likeness (coarse: on the vertices, sparse template; refit: on the surface, dense).
+    likeness: f64,
+    pose: Pose,
+    start: AxisFrame,
+    /// Started from the scanner frame itself (not tilted, not another axis frame).
+    scanner_frame: bool,
+}
 
 /// The start frames, in stages: the scanner frame; the scanner frame with the head pitched
 /// ±30° or turned ±35° (the fit's reach from a start is about that); the 23 other axis frames.
@@ -460,8 +438,8 @@ fn bounds(pts: &[DVec3]) -> Option<(DVec3, DVec3)> {
     )
 }
 
-/// One stage of the rigid fit: at most `iterations`, pairs farther apart than `trim_mm`
-/// dropped, and the distance minimised.
+/// One stage of the fit: at most `iterations`, pairs farther apart than `trim_mm` dropped,
+/// and the distance minimised.
 #[derive(Debug, Clone, Copy)]
 struct IcpStage {
     iterations: usize,
@@ -472,6 +450,26 @@ struct IcpStage {
     /// then lets it slide along the surface into place (on the generic face itself,
     /// point-to-point alone stopped 3.5 mm short after 18 iterations).
     plane: bool,
+}
+
+impl IcpStage {
+    /// A point-to-point stage.
+    const fn points(iterations: usize, trim_mm: f64) -> Self {
+        IcpStage {
+            iterations,
+            trim_mm,
+            plane: false,
+        }
+    }
+
+    /// A point-to-plane stage.
+    const fn plane(iterations: usize, trim_mm: f64) -> Self {
+        IcpStage {
+            iterations,
+            trim_mm,
+            plane: true,
+        }
+    }
 }
 
 /// The template's pose in the scan: `p ↦ scale · rot · p + shift` (rot: scan from face; shift:
@@ -529,14 +527,15 @@ fn icp(
             };
             new.scale = new.scale.clamp(SCALE_RANGE.0, SCALE_RANGE.1);
             let moved = (new.shift - pose.shift).length();
-            let turned = (new.rot.transpose() * pose.rot).to_cols_array()[..]
+            // Trace of the rotation between the two: 3 for none.
+            let trace = (new.rot.transpose() * pose.rot).to_cols_array()[..]
                 .iter()
                 .step_by(4)
                 .sum::<f64>();
             let rescaled = (new.scale - pose.scale).abs();
             pose = new;
             // Converged: under 0.01 mm, ~0.003° and 1e-5 in scale in this iteration.
-            if moved < 0.01 && turned > 3.0 - 2e-9 && rescaled < 1e-5 {
+            if moved < 0.01 && trace > 3.0 - 2e-9 && rescaled < 1e-5 {
                 break;
             }
         }
