@@ -4,6 +4,13 @@
 //! returns an error that `main` prints as one line before exiting with code 1.
 
 mod fem;
+mod landmarks;
+mod recognition;
+
+use landmarks::landmark_params;
+pub(crate) use landmarks::min_median;
+pub use landmarks::{bench_landmarks, landmarks};
+pub use recognition::{augment, evaluate};
 
 use crate::{denoise, generic_face, io};
 use anyhow::{Context, Result};
@@ -39,6 +46,27 @@ pub struct LimitArgs {
     /// across (a head in metres), millimetres otherwise; a scaled file is named on stderr].
     #[arg(long, global = true, value_enum)]
     pub units: Option<UnitsArg>,
+}
+
+/// How feature-point detection finds the face (`landmarks`, `eval-landmarks`).
+#[derive(Debug, Clone, Default, Args)]
+pub struct LocaliseArgs {
+    /// Skip face localisation: run the paper's steps on the scan as it is (scanner frame,
+    /// face towards +z and y up; the largest front-facing region taken as the face).
+    #[arg(long, conflicts_with_all = ["facing", "up"])]
+    pub no_localise: bool,
+    /// The scan axis the face looks along (+x, -x, +y, -y, +z, -z), where known; with --up.
+    /// Default: found by face localisation (the scanner frame first, then every axis frame).
+    #[arg(long, value_name = "AXIS", requires = "up", allow_hyphen_values = true)]
+    pub facing: Option<String>,
+    /// The scan axis the forehead points to, where known; with --facing.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        requires = "facing",
+        allow_hyphen_values = true
+    )]
+    pub up: Option<String>,
 }
 
 /// `--units` values.
@@ -286,10 +314,8 @@ pub enum Command {
         /// Also write a picture: shape index seen from the scanner, with the points.
         #[arg(long, value_name = "PNG")]
         png: Option<PathBuf>,
-        /// Skip face localisation: run the paper's steps on the scan as it is (scanner frame,
-        /// face towards +z and y up; the largest front-facing region taken as the face).
-        #[arg(long)]
-        no_localise: bool,
+        #[command(flatten)]
+        localise: LocaliseArgs,
     },
     /// Benchmark: denoise + feature points on one scan, repeated; prints min/median ms per stage.
     BenchLandmarks {
@@ -308,10 +334,8 @@ pub enum Command {
         /// Also write the JSON report (with per-scan errors) to this file.
         #[arg(long)]
         json: Option<PathBuf>,
-        /// Skip face localisation: run the paper's steps on the scan as it is (scanner frame,
-        /// face towards +z and y up; the largest front-facing region taken as the face).
-        #[arg(long)]
-        no_localise: bool,
+        #[command(flatten)]
+        localise: LocaliseArgs,
     },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
@@ -700,13 +724,13 @@ pub fn run(cli: Cli) -> Result<()> {
             no_denoise,
             json,
             png,
-            no_localise,
+            localise,
         }) => print_json(&landmarks(
             &input,
             !no_denoise,
             json.as_deref(),
             png.as_deref(),
-            &landmark_params(no_localise),
+            &landmark_params(&localise)?,
         )?),
         Some(Command::BenchLandmarks { input, repeat }) => {
             print_json(&bench_landmarks(&input, repeat)?)
@@ -715,9 +739,9 @@ pub fn run(cli: Cli) -> Result<()> {
             dir,
             no_denoise,
             json,
-            no_localise,
+            localise,
         }) => {
-            let params = landmark_params(no_localise);
+            let params = landmark_params(&localise)?;
             let report = crate::landmarks::eval::evaluate_dir(&dir, !no_denoise, &params)?;
             if let Some(path) = &json {
                 io::write_text_atomic(path, &(serde_json::to_string_pretty(&report)? + "\n"))?;
@@ -773,92 +797,6 @@ pub fn curvature(input: &Path, output: &Path, rings: usize) -> Result<serde_json
     }))
 }
 
-/// `facesynth landmarks IN`: denoise (unless told not to), detect, report.
-pub fn landmarks(
-    input: &Path,
-    denoise_first: bool,
-    out: Option<&Path>,
-    png: Option<&Path>,
-    params: &crate::landmarks::LandmarkParams,
-) -> Result<serde_json::Value> {
-    let mut mesh = io::read_mesh(input)?;
-    let start = std::time::Instant::now();
-    if denoise_first {
-        denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
-    }
-    let found = crate::landmarks::detect(&mesh, params);
-    let millis = start.elapsed().as_secs_f64() * 1e3;
-    if let Some(path) = png {
-        let d = crate::curvature::compute(&mesh, &params.curvature)?;
-        let points = found.as_ref().ok().map(|r| &r.landmarks);
-        crate::landmarks::render::write_png(path, &mesh, &d.shape_index, points)?;
-    }
-    let report = found.with_context(|| format!("{}: feature points not found", input.display()))?;
-    if !report.suspect.is_empty() {
-        eprintln!(
-            "facesynth: {}: suspect feature points: {}",
-            input.display(),
-            report.suspect.join("; ")
-        );
-    }
-    let mut value = report.to_json();
-    value["millis"] = json!(millis);
-    value["input"] = json!(input);
-    value["denoised"] = json!(denoise_first);
-    if let Some(path) = out {
-        io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
-    }
-    Ok(value)
-}
-
-/// The feature-point settings of `landmarks` and `eval-landmarks`: the defaults, without face
-/// localisation with `--no-localise`.
-fn landmark_params(no_localise: bool) -> crate::landmarks::LandmarkParams {
-    let mut params = crate::landmarks::LandmarkParams::default();
-    if no_localise {
-        params.localise = None;
-    }
-    params
-}
-
-/// The smallest and the median (upper median for an even count) of repeated timings; `(NaN,
-/// NaN)` for none.
-pub(crate) fn min_median(v: &mut [f64]) -> (f64, f64) {
-    v.sort_by(f64::total_cmp);
-    match v.first() {
-        Some(&min) => (min, v[v.len() / 2]),
-        None => (f64::NAN, f64::NAN),
-    }
-}
-
-/// `facesynth bench-landmarks IN`: wall time of denoise and of detection, `repeat` times
-/// (single-threaded code; run it pinned to one core, e.g. `taskset -c 0`).
-pub fn bench_landmarks(input: &Path, repeat: usize) -> Result<serde_json::Value> {
-    let mesh = io::read_mesh(input)?;
-    let params = crate::landmarks::LandmarkParams::default();
-    let (mut den, mut det, mut total) = (Vec::new(), Vec::new(), Vec::new());
-    for _ in 0..repeat.max(1) {
-        let mut m = mesh.clone();
-        let t0 = std::time::Instant::now();
-        denoise::denoise(&mut m, &denoise::DenoiseParams::default())?;
-        let t1 = std::time::Instant::now();
-        crate::landmarks::detect(&m, &params)?;
-        let t2 = std::time::Instant::now();
-        den.push((t1 - t0).as_secs_f64() * 1e3);
-        det.push((t2 - t1).as_secs_f64() * 1e3);
-        total.push((t2 - t0).as_secs_f64() * 1e3);
-    }
-    let stats = |v: &mut Vec<f64>| {
-        let (min, median) = min_median(v);
-        json!({"min": min, "median": median})
-    };
-    Ok(json!({
-        "input": input, "vertices": mesh.vertex_count(), "repeat": repeat.max(1),
-        "denoise_ms": stats(&mut den), "landmarks_ms": stats(&mut det),
-        "total_ms": stats(&mut total),
-    }))
-}
-
 /// `facesynth register`: registers the built-in generic face to `scan`.
 pub fn register(
     scan: &Path,
@@ -881,208 +819,6 @@ pub fn register(
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
     Ok(value)
-}
-
-/// `facesynth evaluate`: the recognition report as JSON.
-pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
-    use crate::recognition::ProtocolParams;
-    let list = |s: &str| -> Vec<String> {
-        s.split(',')
-            .map(str::trim)
-            .filter(|x| !x.is_empty())
-            .map(String::from)
-            .collect()
-    };
-    let params = ProtocolParams {
-        metric: args.metric,
-        pose: args.pose,
-        pose_points: args.pose_points,
-        gallery_scans: list(&args.gallery_scans),
-        probe_scans: list(&args.probe_scans),
-        fisher: crate::recognition::FisherParams {
-            max_pca_dims: args.pca_dims,
-            within_class_regularisation: args.sw_floor,
-            ..Default::default()
-        },
-        expression_training: args.expression_training.clone(),
-        expression_weights: (!args.no_expression_weights).then_some(
-            crate::recognition::ExpressionWeightParams {
-                scale_mm: args.expression_weight_mm,
-            },
-        ),
-        ..ProtocolParams::default()
-    };
-    if let Some(w) = &params.expression_weights {
-        w.validate()?;
-    }
-    if let (Some(dir), None) = (&args.expression_training, &args.augmented) {
-        return Err(crate::Error::invalid(
-            dir,
-            "--expression-training needs --augmented: the learned deviations enter the \
-             within-class scatter, which a gallery of one scan per person does not have",
-        )
-        .into());
-    }
-    let samples = crate::recognition::protocol::collect_samples(
-        &args.dataset,
-        args.augmented.as_deref(),
-        &params,
-    )?;
-    let in_dataset = |e: crate::Error| e.in_file(&args.dataset);
-    // With learned deviations, the FEM expressions alone too (`synthetic_only`), from the
-    // same PCA.
-    let learned_too: &[bool] = if samples.deviations.is_empty() {
-        &[true]
-    } else {
-        &[true, false]
-    };
-    let mut evals =
-        crate::recognition::protocol::score_variants(&samples, true, learned_too, &params)
-            .map_err(in_dataset)?;
-    let synthetic_only = (evals.len() > 1).then(|| evals.remove(1));
-    let eval = evals.remove(0);
-    let mut value = serde_json::to_value(&eval.report)?;
-    // With synthetic expressions, also the same probes against the plain neutral gallery.
-    let without = match args.augmented {
-        Some(_) => Some(
-            crate::recognition::protocol::score(&samples, false, &params).map_err(in_dataset)?,
-        ),
-        None => None,
-    };
-    let summary = |r: &crate::recognition::Report| {
-        json!({
-            "method": r.method, "method_note": r.method_note,
-            "rank1": r.rank1, "rank5": r.rank5, "cmc": r.cmc,
-            "by_probe_kind": r.by_probe_kind, "gallery_samples": r.gallery_samples,
-        })
-    };
-    if let Some(w) = &without {
-        value["without_augmentation"] = summary(&w.report);
-    }
-    if let Some(r) = &synthetic_only {
-        value["synthetic_only"] = summary(&r.report);
-    }
-    if let Some(path) = &args.plot {
-        let curves = cmc_curves(&eval.report, without.as_ref().map(|w| &w.report));
-        let title = format!(
-            "CMC, {} subjects, {} probes ({:?}, pose {:?})",
-            eval.report.subjects, eval.report.probes, params.metric, params.pose
-        )
-        .to_lowercase()
-        .replacen("cmc", "CMC", 1);
-        crate::recognition::plot::write_cmc_png(
-            path,
-            &title,
-            &curves,
-            crate::recognition::plot::DEFAULT_SIZE,
-        )?;
-    }
-    if let Some(path) = &args.report {
-        io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
-    }
-    if let Some(path) = &args.features {
-        io::write_text_atomic(path, &serde_json::to_string(&eval.features_json())?)?;
-    }
-    Ok(value)
-}
-
-/// The curves of `evaluate --plot`: all probes (bold) and each probe kind, solid for the
-/// run scored (`with`: augmented when there are synthetic samples), dashed for `without`.
-fn cmc_curves(
-    with: &crate::recognition::Report,
-    without: Option<&crate::recognition::Report>,
-) -> Vec<crate::recognition::plot::Curve> {
-    use crate::recognition::plot::Curve;
-    let augmented = with.synthetic_gallery_samples > 0;
-    let with_tag = if with.learned_deviations > 0 {
-        format!(
-            ", with aug. + learned ({} people)",
-            with.expression_training_subjects
-        )
-    } else {
-        ", with aug.".to_string()
-    };
-    let mut out = Vec::new();
-    let mut add = |report: &crate::recognition::Report, tag: &str, dashed: bool| {
-        out.push(Curve {
-            label: format!(
-                "all {} probes{tag}: rank-1 {:.1} %",
-                report.probes,
-                100.0 * report.rank1
-            ),
-            cmc: report.cmc.clone(),
-            colour: 0,
-            dashed,
-            bold: true,
-        });
-        for (k, (kind, rates)) in report.by_probe_kind.iter().enumerate() {
-            out.push(Curve {
-                label: format!(
-                    "{kind} ({}){tag}: {:.1} %",
-                    rates.probes,
-                    100.0 * rates.rank1
-                ),
-                cmc: rates.cmc.clone(),
-                colour: k + 1,
-                dashed,
-                bold: false,
-            });
-        }
-    };
-    match without {
-        Some(w) => {
-            add(w, ", without aug.", true);
-            add(with, &with_tag, false);
-        }
-        None => add(with, if augmented { &with_tag } else { "" }, false),
-    }
-    out
-}
-
-/// `facesynth augment`: the batch with a progress line per scan on stderr.
-pub fn augment(
-    gallery: &Path,
-    out: &Path,
-    params: &crate::pipeline::AugmentParams,
-) -> Result<serde_json::Value> {
-    let start = std::time::Instant::now();
-    // A bar on a terminal; one line per scan where stderr is a log (indicatif hides the bar
-    // there). Failures are printed above the bar so they stay on screen.
-    let bar = indicatif::ProgressBar::new(0).with_style(
-        indicatif::ProgressStyle::with_template(
-            "augment {bar:30} {pos}/{len} scans, {elapsed} elapsed, eta {eta}  {wide_msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    let result = crate::pipeline::augment(gallery, out, params, &|k, n, line| {
-        if bar.is_hidden() {
-            eprintln!("augment [{k}/{n}] {line}");
-            return;
-        }
-        if k == 0 {
-            bar.set_length(n as u64);
-            // Elapsed and eta keep moving while the first (slow) scans run.
-            bar.enable_steady_tick(std::time::Duration::from_millis(250));
-        }
-        bar.set_position(k as u64);
-        if line.contains("FAILED") {
-            bar.println(format!("augment [{k}/{n}] {line}"));
-        }
-        bar.set_message(line.to_string());
-    });
-    bar.finish_and_clear();
-    let (done, failed) = result?;
-    let seconds = start.elapsed().as_secs_f64();
-    Ok(json!({
-        "gallery": gallery, "out": out,
-        "scans": done.len() + failed.len(),
-        "augmented": done.iter().filter(|a| !a.resumed).count(),
-        "resumed": done.iter().filter(|a| a.resumed).count(),
-        "redone_with_new_settings": done.iter().filter(|a| a.redone).count(),
-        "failures": failed,
-        "expressions_per_scan": done.iter().map(|a| a.expressions).max().unwrap_or(0),
-        "seconds": seconds,
-    }))
 }
 
 fn print_json(value: &serde_json::Value) -> Result<()> {

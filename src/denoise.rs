@@ -43,11 +43,9 @@
 //!
 //! # What differs from the literal paper method, and why
 //!
-//! Measured on 100 synthetic scans (20 subjects × 5, `synth_gavab.py --seed 2024`, ~0.31 % of
-//! the vertices spiked by 5–40 mm, σ = 0.15 mm noise; `facesynth eval-denoise NOISY CLEAN`):
-//! the literal method (global threshold, no floor) leaves RMSE 0.40 mm, max 40.7 mm and 13,675
-//! vertices more than 2 mm off (the input: 1.20 mm, 40.1 mm, 4,988); it damages the noise-free
-//! twins by 0.36 mm RMSE. Three things go wrong, and the default changes each:
+//! On synthetic scans with injected spikes the literal method leaves thousands of vertices
+//! more than 2 mm off and damages the noise-free twins (figures: `docs/measurements.md`,
+//! "Denoising"). Three things go wrong, and the default changes each:
 //!
 //! 1. **One global maximum** ([`MoveRule`]): each iteration only moves the changes within `w`
 //!    of the single largest one, so 5–40 mm spikes need ~10 iterations between them, and the
@@ -88,82 +86,34 @@
 //!    with at least 8 and a third of its 3-ring points (within 1 mm) is one side of a crease,
 //!    a closed lid or a lip edge, and is never moved: the ring's quadric cannot follow such
 //!    an edge and mispredicts it by 4–10 mm, which the eligibility tests above did not
-//!    always catch (48 real vertices moved > 2 mm on the 100 scans before this test, 2 after).
-//!    The spikes it keeps (2 of the 11 vertices left > 2 mm off before `removal`'s tests 3
-//!    and 4, 1 of the 2 after; more on stop 29's fresh sets, see [`removal`]) lie on steep
-//!    sides or beside real steps, where
-//!    some plane through the spike meets 8 ring points; asking for 2–4 of those supporters
-//!    within 2.2 mm (the 1-ring) as well left 12 instead of 11 (one real vertex more moved).
+//!    always catch. The spikes it keeps lie on steep sides or beside real steps, where some
+//!    plane through the spike meets 8 ring points; [`removal`] takes most of those out.
 //! 7. **Removal** ([`removal`], [`DenoiseParams::remove_unrepairable`]): what the filter
-//!    cannot repair — rim spikes, spike clusters that are their own support — and, since
-//!    stop 32, every repair over [`DenoiseParams::repair_max_mm`] (3 mm) is taken out of
+//!    cannot repair — rim spikes, spike clusters that are their own support — and every
+//!    repair over [`DenoiseParams::repair_max_mm`] (3 mm) is taken out of
 //!    the mesh (a quad that loses a corner stays as a triangle); downstream steps see a
 //!    small hole, which registration and range images fill. [`DenoiseReport::kept`] maps
 //!    output vertices to input ones.
 //!
-//! Since stop 32 the defaults keep no vertex further than 3 mm from where it was measured
-//! (on seed 79 that removes the last vertex > 2 mm off, a real pit the filter lifted; every
-//! repaired spike is removed: 1,941 → 4,987 spike vertices on seed 2024), judge rim vertices
-//! by a wider fit and remove fragments of ≤ 8 vertices, also those the removals leave: over
-//! 1,050 synthetic scans (seeds 2024, 1, 77–85) 7 vertices stay > 2 mm off (max 5.4 mm),
-//! 45 at stop 31; on seed 85, made after these rules, 2 → 0 (max 0.71 mm). Stop 34 removes
-//! spiked corners of the rim (`removal`'s test 6): 5 → 3 over those 1,050 scans (all three on
-//! seed 78, max 5.31 mm), 5 → 4 on the hold-out seeds 86–88 and 3 → 2 on seeds 89–90, made
-//! afterwards; seed 91, made at stop 35: 4 (max 7.43 mm; 3 of them > 2 mm from the clean
-//! surface, one rim cluster); with stop 35's lower cluster threshold at rims, 1 (4.97 mm,
-//! 1.49 mm from the surface). See [`removal`].
-//! Result with the defaults of stop 31 (same 100 scans, 1,581,547 vertices): RMSE 0.150 mm over the
-//! kept vertices (Laplacian at its best k = 4: 0.717, Taubin at its best k = 37: 0.762),
-//! shrinkage 0.0000 mm, damage to the clean twins 0.000 mm RMSE; **1 vertex still more
-//! than 2 mm off, max 4.98 mm** (since stop 29; 2 at stop 28, 11 before `removal`'s cluster
-//! and repair checks): a rim spike (see [`removal`]). Removed: 1,941 spike vertices (of
-//! ~4,900 injected; the rest were moved back) and 1,876 other vertices (0.12 %; 743 before
-//! stop 31 removed isolated fragments of ≤ 4 vertices, the rest mostly rims next to spikes
-//! and on the eye, nostril and lip gaps); from the clean twins 969 vertices (0.06 %; 629).
-//! **The goal of max ≤ 2 mm is not met on fresh data**: new 100-scan sets
-//! (`--subjects 20`) leave 5, 4, 1, 0 and 4 vertices > 2 mm off on seeds 77, 78, 79, 80, 81
-//! (max 6.3, 5.9, 3.9, 1.5, 9.6 mm; 7, 4, 1, 3, 8 at stop 29, 12, 12, 4, 6 at stop 28), and
-//! seed 82 (made after stop 31's changes) 6 (max 6.8 mm; 7 with stop 29's rules), RMSE
-//! 0.150–0.151 mm against Laplacian 0.72–0.73 and Taubin 0.77, shrinkage 0.0000 mm; seeds
-//! 77–79 were looked at while making stop 29's rules, seeds 80 and 81 at stop 31's (the
-//! fragment size, 4, was chosen over 3 on seed 81: 8 → 8 with 3). Second set,
-//! `--subjects 10 --seed 1` (50 scans; held out until stop 28): RMSE 0.171 → 0.150 mm,
-//! > 2 mm 111 → 0, max 32.6 → 1.03 mm, 592 vertices removed from the clean twins (353
-//! before stop 31). Measured as distance to the clean twin's *surface* instead of to the twin
-//! vertex (`eval::MethodScore::max_surface_mm`): vertices > 2 mm off it, seeds 2024 / 1 /
-//! 77 / 78 / 79 / 80 / 81 / 82: 0 / 0 / 2 / 4 / 0 / 0 / 3 / 4 (max 1.6 / 0.6 / 5.1 / 3.3 /
-//! 0.8 / 0.7 / 4.0 / 5.1 mm): a rim tip or a lifted pit is a sample moved along the surface,
-//! the clusters on steep sides are not. The literal paper method leaves 13,675 vertices
-//! > 2 mm off their twins on seed 2024 but only 457 off the surface (it slides vertices
-//! sideways); the input has 4,988 and 4,929. What is left is in [`removal`]'s docs; the
-//! editor's erase brush takes it out by hand. The previous
-//! default (no removal, no step-edge test): RMSE 0.180 mm, 255
-//! vertices > 2 mm, max 36.1 mm. Speed: 38 ms per synthetic scan; whole `facesynth denoise`
-//! process (read, filter, write), CPU time, paired medians against the build before removal
-//! and the step-edge test: cara1_frontal1 55 ms (ratio 0.97), cara1_sonrisa 126 ms (1.14).
-//! Stop 29's removal tests (putting back, re-peeling) cost cara1_sonrisa 83 → 89–96 ms of
-//! denoising (`bench-landmarks`, one core, medians of 20, four alternating runs each;
-//! denoise + feature points 102 → 108–117 ms, goal 150).
-//! The removal's fits are only made at rims, where the filter's own last fit was ≥ 1 mm off,
-//! and around moved vertices.
-//! Stop 25: the quadric's normal equations and Cholesky on fixed-size arrays instead of
-//! nalgebra's generic matrices (45 % of the time was there; results identical): denoise
-//! alone in `bench-landmarks`, min / median, cara1_frontal1 35.0 / 36.2 ms, cara1_sonrisa
-//! 98.0 / 101.3 ms (was 109 / 115). Stop 33: the consensus fit's 48 subsets depend on the
-//! ring size alone, so they are drawn once per size and fitted as index lists (a mask over
-//! the ring cost a mispredicted branch per point), and a trial stops counting inliers once it
-//! cannot beat the best; identical output, cara1_sonrisa denoising 131 → 111 ms (median).
+//! What the defaults achieve (RMSE, vertices left more than 2 mm off, per seed; against the
+//! Laplacian and Taubin baselines; speed) is in `docs/measurements.md`, "Denoising", with the
+//! `facesynth eval-denoise` commands.
 //!
 //! The literal method is [`DenoiseParams::paper`] (`--paper`): global rule, no floor, the
 //! paper's median → Laplacian estimate.
 
 pub mod eval;
+mod median_laplacian;
+mod quadric;
 pub mod removal;
 
 use crate::mesh::{Mesh, Topology};
 use crate::{Error, Result};
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use serde::Serialize;
+
+use median_laplacian::*;
+use quadric::*;
 
 /// Which filter [`denoise`] runs.
 #[derive(
@@ -308,8 +258,8 @@ pub struct DenoiseParams {
     /// rather than kept where the filter put it. Default 3 mm: a spike (≥ 5 mm) moved back
     /// held nothing of the surface, and a real one-vertex pit the filter lifted (lid and lip
     /// lines) is a guess of that size; either way the hole is filled downstream as the
-    /// repair was. `f64::INFINITY` keeps every repair (a closed mesh, the stop-29 behaviour
-    /// less its removals beside repairs). Measured at stop 32, see [`removal`].
+    /// repair was. `f64::INFINITY` keeps every repair (a closed mesh). Figures:
+    /// `docs/measurements.md`, "Denoising".
     pub repair_max_mm: f64,
 }
 
@@ -502,8 +452,26 @@ pub fn denoise_with_topology(
             mesh.vertex_count()
         )));
     }
+    // The filter moves vertices along z, the scanner's viewing axis. A file in other axes
+    // (y-up facing −z, z-up, …) is turned by the axis permutation that brings its line of
+    // sight to +z, filtered, and turned back (exactly: the matrix holds only 0 and ±1).
+    let view = viewing_frame(mesh);
+    let turn = |mesh: &mut Mesh, r: DMat3| {
+        for p in mesh.positions_mm.iter_mut() {
+            *p = r * *p;
+        }
+        for n in mesh.normals.iter_mut() {
+            *n = r * *n;
+        }
+    };
+    if view != DMat3::IDENTITY {
+        turn(mesh, view);
+    }
     let nb = FilterNeighbours::new(mesh, topology, params.boundary);
     let mut filtered = filter(&mut mesh.positions_mm, &nb, topology, params, |_, _| {});
+    if view != DMat3::IDENTITY {
+        turn(mesh, view.transpose());
+    }
     if !filtered.removed.iter().any(|&r| r) {
         return Ok(DenoiseReport::new(
             params.method,
@@ -516,6 +484,24 @@ pub fn denoise_with_topology(
     let keep: Vec<bool> = filtered.removed.iter().map(|r| !r).collect();
     mesh.retain_vertices(&keep);
     Ok(report)
+}
+
+/// The axis permutation (rows: the new x, y, z) that turns the scan's line of sight, the scan
+/// axis nearest its mean vertex normal (a single-view scan faces its scanner), into +z; the
+/// identity for a scan in the scanner frame or a closed mesh.
+pub fn viewing_frame(mesh: &Mesh) -> DMat3 {
+    let mean = mesh.normals.iter().copied().sum::<DVec3>();
+    let k = (0..3)
+        .max_by(|&a, &b| mean[a].abs().total_cmp(&mean[b].abs()))
+        .unwrap_or(2);
+    if mean == DVec3::ZERO || (k == 2 && mean.z > 0.0) {
+        return DMat3::IDENTITY;
+    }
+    let mut z = DVec3::ZERO;
+    z[k] = mean[k].signum();
+    let y = if k == 1 { DVec3::Z } else { DVec3::Y };
+    let x = y.cross(z);
+    DMat3::from_cols(x, y, z).transpose()
 }
 
 /// The neighbours each vertex is filtered with (CSR): the 1-ring for interior vertices, the
@@ -739,862 +725,6 @@ fn laplacian_step(
         let avg = sum / ring.len() as f64;
         *p += factor * (avg - scratch[v]);
     }
-}
-
-/// Buffers of the median-Laplacian filter, allocated once per run.
-struct MedianLaplacianWork {
-    median: Vec<DVec3>,
-    candidate: Vec<DVec3>,
-    disp: Vec<f64>,
-    /// Per-vertex eligibility floor, mm (the robust estimator's `k σ̂`, else the global floor).
-    floor: Vec<f64>,
-    label: Vec<u32>,
-    region_max: Vec<f64>,
-    stack: Vec<u32>,
-    xs: Vec<f64>,
-    ys: Vec<f64>,
-    zs: Vec<f64>,
-    /// [`Estimator::RobustQuadric`]: the 2-rings (CSR), and which vertices need a new fit.
-    rings: Option<Rings>,
-    /// The 3-rings, for vertices whose 2-ring fit stays rough (spike clusters).
-    rings3: Option<Rings>,
-    dirty: Vec<bool>,
-    /// [`Estimator::RobustQuadric`]: `false` while the interior is filtered (rim vertices
-    /// wait), `true` once it has settled and the rim vertices are filtered.
-    rim_phase: bool,
-    fit: QuadricFit,
-}
-
-/// The 2-ring of every vertex (the vertex itself excluded), CSR.
-struct Rings {
-    offsets: Vec<u32>,
-    items: Vec<u32>,
-}
-
-impl Rings {
-    fn new(topology: &Topology, k: usize) -> Self {
-        let n = topology.vertex_count();
-        let mut offsets = Vec::with_capacity(n + 1);
-        let mut items = Vec::with_capacity(n * 12);
-        let mut scratch = vec![false; n];
-        let mut ring = Vec::new();
-        offsets.push(0);
-        for v in 0..n {
-            topology.k_ring(v, k, &mut scratch, &mut ring);
-            items.extend_from_slice(&ring);
-            offsets.push(items.len() as u32);
-        }
-        Rings { offsets, items }
-    }
-
-    fn of(&self, v: usize) -> &[u32] {
-        &self.items[self.offsets[v] as usize..self.offsets[v + 1] as usize]
-    }
-}
-
-impl MedianLaplacianWork {
-    fn new(n: usize, topology: &Topology, estimator: Estimator) -> Self {
-        MedianLaplacianWork {
-            median: vec![DVec3::ZERO; n],
-            candidate: vec![DVec3::ZERO; n],
-            disp: vec![0.0; n],
-            floor: vec![0.0; n],
-            label: vec![u32::MAX; n],
-            region_max: Vec::new(),
-            stack: Vec::new(),
-            xs: Vec::with_capacity(16),
-            ys: Vec::with_capacity(16),
-            zs: Vec::with_capacity(16),
-            rings: (estimator == Estimator::RobustQuadric).then(|| Rings::new(topology, 2)),
-            rings3: (estimator == Estimator::RobustQuadric).then(|| Rings::new(topology, 3)),
-            dirty: vec![true; n],
-            rim_phase: false,
-            fit: QuadricFit::default(),
-        }
-    }
-
-    /// Steps 1–3 of [`Estimator::MedianLaplacian`]: candidates and displacements.
-    fn estimate_median_laplacian(
-        &mut self,
-        positions: &[DVec3],
-        nb: &FilterNeighbours,
-        floor: f64,
-    ) {
-        // 1. Component-wise median of the vertex and its filter neighbours.
-        for (v, m) in self.median.iter_mut().enumerate() {
-            let ring = nb.of(v);
-            if ring.is_empty() {
-                *m = positions[v];
-                continue;
-            }
-            self.xs.clear();
-            self.ys.clear();
-            self.zs.clear();
-            for p in std::iter::once(v).chain(ring.iter().map(|&u| u as usize)) {
-                let p = positions[p];
-                self.xs.push(p.x);
-                self.ys.push(p.y);
-                self.zs.push(p.z);
-            }
-            *m = DVec3::new(
-                median(&mut self.xs),
-                median(&mut self.ys),
-                median(&mut self.zs),
-            );
-        }
-        // 2. Laplacian (umbrella average) of the median-filtered mesh; 3. displacement.
-        for v in 0..positions.len() {
-            let ring = nb.of(v);
-            let c = if ring.is_empty() {
-                positions[v]
-            } else if nb.is_along_rim(v) {
-                self.median[v]
-            } else {
-                ring.iter().map(|&u| self.median[u as usize]).sum::<DVec3>() / ring.len() as f64
-            };
-            self.candidate[v] = c;
-            self.disp[v] = c.distance(positions[v]);
-            self.floor[v] = floor;
-        }
-    }
-
-    /// Steps 1–3 of [`Estimator::RobustQuadric`] for the vertices marked dirty.
-    fn estimate_quadric(
-        &mut self,
-        positions: &[DVec3],
-        input: &[DVec3],
-        topology: &Topology,
-        params: &DenoiseParams,
-        floor: f64,
-        moved: &[bool],
-    ) {
-        let rings = self
-            .rings
-            .as_ref()
-            .expect("rings are built for the quadric estimator");
-        let rings3 = self
-            .rings3
-            .as_ref()
-            .expect("rings are built for the quadric estimator");
-        for v in 0..positions.len() {
-            if !self.dirty[v] {
-                continue;
-            }
-            self.dirty[v] = false;
-            let p = positions[v];
-            let held = topology.is_boundary[v]
-                && (params.boundary == BoundaryRule::Hold || !self.rim_phase);
-            let estimate = if held {
-                None
-            } else {
-                if topology.is_boundary[v] {
-                    // A rim vertex is fitted from the interior of its 3-ring only: other rim
-                    // vertices (single-face tips, rim spikes) are the least reliable support.
-                    let interior = |u: usize| !topology.is_boundary[u];
-                    self.fit
-                        .predict(positions, p, rings3.of(v), interior)
-                        .or_else(|| self.fit.predict(positions, p, rings3.of(v), |_| true))
-                } else {
-                    let all = |_: usize| true;
-                    match self.fit.predict(positions, p, rings.of(v), all) {
-                        // A rough 2-ring: a spike cluster may hold too large a share of it.
-                        Some((_, sigma, _)) if sigma > TRIM_MIN_MM => self
-                            .fit
-                            .predict(positions, p, rings3.of(v), all)
-                            .filter(|e| e.1 < sigma),
-                        e => e,
-                    }
-                    .or_else(|| self.fit.predict(positions, p, rings.of(v), all))
-                }
-            };
-            // A rim vertex moves only towards its neighbours' median height and not much
-            // past it: a one-sided fit next to other defects can point the wrong way.
-            let estimate = estimate.filter(|&(z, _, _)| {
-                if !topology.is_boundary[v] {
-                    return true;
-                }
-                self.zs.clear();
-                self.zs.extend(
-                    topology
-                        .neighbours(v)
-                        .iter()
-                        .map(|&u| positions[u as usize].z),
-                );
-                if self.zs.is_empty() {
-                    return false;
-                }
-                let towards = median(&mut self.zs) - p.z;
-                let step = z - p.z;
-                step * towards > 0.0 && step.abs() <= towards.abs() + params.rim_floor_mm
-            });
-            match estimate {
-                Some((z, sigma, rough)) => {
-                    self.candidate[v] = DVec3::new(p.x, p.y, z);
-                    self.disp[v] = (z - p.z).abs();
-                    self.floor[v] = if moved[v] {
-                        params.refine_displacement_mm.max(STILL_MM)
-                    } else {
-                        let f =
-                            eligibility_floor(params, floor, sigma, rough, topology.is_boundary[v]);
-                        veto_real_surface(f, self.disp[v], input, v, rings3.of(v), topology)
-                    };
-                }
-                None => {
-                    self.candidate[v] = p;
-                    self.disp[v] = 0.0;
-                    self.floor[v] = f64::INFINITY;
-                }
-            }
-        }
-        self.estimate_clusters(positions, input, topology, params, floor, moved);
-    }
-
-    /// Spike clusters: a vertex whose change clears the displacement floor but not its ring's
-    /// roughness test, next to other such vertices, is refitted from its 3-ring without all
-    /// of them. Several spiked neighbours (up to a third of a rim vertex's ring) otherwise
-    /// pull its fit towards them and make its ring look rough, so the whole cluster stays.
-    fn estimate_clusters(
-        &mut self,
-        positions: &[DVec3],
-        input: &[DVec3],
-        topology: &Topology,
-        params: &DenoiseParams,
-        floor: f64,
-        moved: &[bool],
-    ) {
-        let rings3 = self
-            .rings3
-            .as_ref()
-            .expect("rings are built for the quadric estimator");
-        let n = positions.len();
-        let suspect: Vec<bool> = (0..n).map(|v| self.disp[v] >= floor).collect();
-        for v in 0..n {
-            let blocked = suspect[v] && self.disp[v] < self.floor[v] && !moved[v];
-            if !blocked
-                || (topology.is_boundary[v] && !self.rim_phase)
-                || !topology.neighbours(v).iter().any(|&u| suspect[u as usize])
-            {
-                continue;
-            }
-            let p = positions[v];
-            let use_point = |u: usize| !suspect[u] && !topology.is_boundary[u];
-            let Some((z, sigma, rough)) = self.fit.predict(positions, p, rings3.of(v), use_point)
-            else {
-                continue;
-            };
-            // Only a change the same way as the first estimate's: the cluster is one event.
-            if (z - p.z) * (self.candidate[v].z - p.z) <= 0.0 {
-                continue;
-            }
-            self.candidate[v] = DVec3::new(p.x, p.y, z);
-            self.disp[v] = (z - p.z).abs();
-            let f = eligibility_floor(params, floor, sigma, rough, topology.is_boundary[v]);
-            self.floor[v] = veto_real_surface(f, self.disp[v], input, v, rings3.of(v), topology);
-        }
-    }
-
-    /// One iteration; returns how many vertices moved.
-    fn iterate(
-        &mut self,
-        positions: &mut [DVec3],
-        input: &[DVec3],
-        nb: &FilterNeighbours,
-        topology: &Topology,
-        params: &DenoiseParams,
-        moved: &mut [bool],
-    ) -> usize {
-        let floor = params.min_displacement_mm.max(STILL_MM);
-        match params.estimator {
-            Estimator::MedianLaplacian => self.estimate_median_laplacian(positions, nb, floor),
-            Estimator::RobustQuadric => {
-                self.estimate_quadric(positions, input, topology, params, floor, moved)
-            }
-        }
-        // 4. Threshold; 5. move.
-        let mut count = 0;
-        match params.rule {
-            MoveRule::Global => {
-                let max = self
-                    .disp
-                    .iter()
-                    .zip(&self.floor)
-                    .filter(|(d, f)| d >= f)
-                    .map(|(d, _)| *d)
-                    .fold(0.0, f64::max);
-                let t = params.w * max;
-                for v in 0..positions.len() {
-                    if self.disp[v] >= t && self.disp[v] >= self.floor[v] {
-                        positions[v] = self.candidate[v];
-                        moved[v] = true;
-                        count += 1;
-                        self.mark_dirty(v);
-                    }
-                }
-            }
-            MoveRule::PerRegion => {
-                self.label_regions(topology);
-                for v in 0..positions.len() {
-                    let l = self.label[v];
-                    if l != u32::MAX && self.disp[v] >= params.w * self.region_max[l as usize] {
-                        positions[v] = self.candidate[v];
-                        moved[v] = true;
-                        count += 1;
-                        self.mark_dirty(v);
-                    }
-                }
-            }
-        }
-        count
-    }
-
-    /// Switches the quadric estimator to the rim phase; `false` if there is none (the paper's
-    /// estimator, or no rim).
-    fn start_rim_phase(&mut self, topology: &Topology) -> bool {
-        if self.rings.is_none() || !topology.is_boundary.iter().any(|&b| b) {
-            return false;
-        }
-        self.rim_phase = true;
-        for (d, &b) in self.dirty.iter_mut().zip(&topology.is_boundary) {
-            *d |= b;
-        }
-        true
-    }
-
-    /// After `v` moved: every vertex whose estimate uses `v` needs a new one.
-    fn mark_dirty(&mut self, v: usize) {
-        if let Some(rings) = &self.rings3 {
-            self.dirty[v] = true;
-            for &u in rings.of(v) {
-                self.dirty[u as usize] = true;
-            }
-        }
-    }
-
-    /// Labels the connected regions of eligible vertices (`disp ≥ floor`) and records each
-    /// region's largest displacement.
-    fn label_regions(&mut self, topology: &Topology) {
-        self.label.fill(u32::MAX);
-        self.region_max.clear();
-        for seed in 0..self.disp.len() {
-            if self.disp[seed] < self.floor[seed] || self.label[seed] != u32::MAX {
-                continue;
-            }
-            let id = self.region_max.len() as u32;
-            let mut max = 0.0f64;
-            self.label[seed] = id;
-            self.stack.clear();
-            self.stack.push(seed as u32);
-            while let Some(v) = self.stack.pop() {
-                let v = v as usize;
-                max = max.max(self.disp[v]);
-                for &u in topology.neighbours(v) {
-                    let u = u as usize;
-                    if self.label[u] == u32::MAX && self.disp[u] >= self.floor[u] {
-                        self.label[u] = id;
-                        self.stack.push(u as u32);
-                    }
-                }
-            }
-            self.region_max.push(max);
-        }
-    }
-}
-
-/// Least-squares quadric (or plane) fit of a height field over a vertex's ring, with one
-/// trimming pass ([`Estimator::RobustQuadric`]).
-#[derive(Default)]
-struct QuadricFit {
-    /// Ring points relative to the vertex: (x, y, z).
-    pts: Vec<DVec3>,
-    keep: Vec<bool>,
-    /// Least-squares weights (1 = plain least squares; the L1 reweighting changes them).
-    weight: Vec<f64>,
-    res: Vec<f64>,
-    /// The consensus fit's subsets for a ring of `n` points, at index `n`: the pseudo-random
-    /// sequence depends on `n` alone, so each is drawn once per fit object.
-    subsets: Vec<Vec<[u32; QUADRIC_MIN_POINTS]>>,
-}
-
-/// Fewest ring points for a quadric fit (6 unknowns) and for a plane fit (3 unknowns).
-const QUADRIC_MIN_POINTS: usize = 9;
-const PLANE_MIN_POINTS: usize = 4;
-/// L1 (least absolute deviations) reweighting rounds used when a plain fit leaves a rough
-/// ring (σ̂ above [`TRIM_MIN_MM`]): a spike cluster inside the ring pulls a least-squares
-/// fit towards it, the L1 fit is not pulled by a minority of outliers in z.
-const L1_ROUNDS: usize = 10;
-/// A vertex is eligible only if its change is at least this many times the ring's own
-/// roughness (90th percentile of the ring residuals below half the change): a spike stands
-/// out of a smooth ring, a vertex on a crease or lip edge the quadric cannot follow has
-/// ring neighbours almost as far off as itself.
-const RING_ROUGHNESS_RATIO: f64 = 3.0;
-/// A first fit with a ring residual above this (mm) is redone by L1 reweighting.
-const L1_TRIGGER_MM: f64 = 2.0;
-/// Random subsets tried by the consensus fit, and the residual (mm) within which a ring point
-/// agrees with a candidate quadric (scanner noise σ ≈ 0.15 mm, plus what a quadric cannot
-/// follow over a 3-ring).
-const CONSENSUS_TRIALS: usize = 48;
-const CONSENSUS_TOLERANCE_MM: f64 = 1.5;
-/// Ring points with a residual above `max(TRIM_SIGMAS σ̂, TRIM_MIN_MM)` are left out of the
-/// refit.
-const TRIM_SIGMAS: f64 = 3.0;
-const TRIM_MIN_MM: f64 = 1.0;
-
-impl QuadricFit {
-    /// Takes the ring points `use_point` admits, relative to `p`, all kept, unit weights.
-    fn load(
-        &mut self,
-        positions: &[DVec3],
-        p: DVec3,
-        ring: &[u32],
-        use_point: impl Fn(usize) -> bool,
-    ) {
-        self.pts.clear();
-        self.pts.extend(
-            ring.iter()
-                .filter(|&&u| use_point(u as usize))
-                .map(|&u| positions[u as usize] - p),
-        );
-        self.keep.clear();
-        self.keep.resize(self.pts.len(), true);
-        self.weight.clear();
-        self.weight.resize(self.pts.len(), 1.0);
-    }
-
-    /// The height [`QuadricFit::predict`] would give at `p`, computed the cheap way when the
-    /// ring is smooth: one least-squares fit that leaves every ring point within
-    /// [`TRIM_MIN_MM`] is what `predict` keeps (no L1, no consensus, nothing trimmed), so the
-    /// height is the same. `None` when the ring is not that smooth (call `predict`).
-    fn predict_smooth(
-        &mut self,
-        positions: &[DVec3],
-        p: DVec3,
-        ring: &[u32],
-        use_point: impl Fn(usize) -> bool,
-    ) -> Option<f64> {
-        self.load(positions, p, ring, use_point);
-        let (z, c) = self.solve()?;
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for q in &self.pts {
-            if (q.z - eval_quadric(&c, q.x, q.y)).abs() > TRIM_MIN_MM {
-                return None;
-            }
-            (lo, hi) = (lo.min(q.z), hi.max(q.z));
-        }
-        let span = hi - lo;
-        (z >= lo - span - 1.0 && z <= hi + span + 1.0).then_some(p.z + z)
-    }
-
-    /// The fitted height at `p`: [`Self::predict_smooth`] where the ring is smooth, else
-    /// [`Self::predict`]'s.
-    fn height(
-        &mut self,
-        positions: &[DVec3],
-        p: DVec3,
-        ring: &[u32],
-        use_point: impl Fn(usize) -> bool + Copy,
-    ) -> Option<f64> {
-        self.predict_smooth(positions, p, ring, use_point)
-            .or_else(|| {
-                self.predict(positions, p, ring, use_point)
-                    .map(|(z, _, _)| z)
-            })
-    }
-
-    /// The fitted height at `p`, the robust residual scale σ̂ of the kept ring points and the
-    /// ring's roughness on the scale of the change (see [`RING_ROUGHNESS_RATIO`]), or `None`
-    /// when the ring cannot support a fit.
-    fn predict(
-        &mut self,
-        positions: &[DVec3],
-        p: DVec3,
-        ring: &[u32],
-        use_point: impl Fn(usize) -> bool,
-    ) -> Option<(f64, f64, f64)> {
-        self.load(positions, p, ring, use_point);
-        let mut z = self.solve()?;
-        let rough = self
-            .pts
-            .iter()
-            .any(|q| (q.z - eval_quadric(&z.1, q.x, q.y)).abs() > L1_TRIGGER_MM);
-        if rough {
-            for _ in 0..L1_ROUNDS {
-                for (i, q) in self.pts.iter().enumerate() {
-                    let r = (q.z - eval_quadric(&z.1, q.x, q.y)).abs();
-                    self.weight[i] = 1.0 / r.max(0.05);
-                }
-                z = self.solve()?;
-            }
-            self.weight.fill(1.0);
-            // A spike cluster can hold a third of a rim vertex's ring, more than L1 resists:
-            // a consensus fit (random 9-point subsets, the quadric most points agree with)
-            // is not pulled by any minority.
-            if let Some(c) = self.consensus()
-                && self.inliers(&c.1, 0) > self.inliers(&z.1, 0)
-            {
-                z = c;
-            }
-        }
-        let sigma = self.trim(z.1);
-        if self.keep.iter().any(|k| !k) {
-            z = self.solve()?;
-        }
-        let sigma = self.sigma_of(z.1).min(sigma);
-        // A wild extrapolation (thin strips, one-sided rims): not trusted.
-        let (lo, hi) = self
-            .pts
-            .iter()
-            .zip(&self.keep)
-            .filter(|(_, k)| **k)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (q, _)| {
-                (lo.min(q.z), hi.max(q.z))
-            });
-        let span = hi - lo;
-        if !(z.0 >= lo - span - 1.0 && z.0 <= hi + span + 1.0) {
-            return None;
-        }
-        // How rough the ring is on the scale of this change: the 90th percentile of the ring
-        // residuals below half the change (a cluster's other spikes are above it).
-        let d = z.0.abs();
-        self.res.clear();
-        for q in &self.pts {
-            let r = (q.z - eval_quadric(&z.1, q.x, q.y)).abs();
-            if r < 0.5 * d {
-                self.res.push(r);
-            }
-        }
-        let rough = if self.res.is_empty() {
-            0.0
-        } else {
-            let k = (0.9 * (self.res.len() - 1) as f64).round() as usize;
-            *self.res.select_nth_unstable_by(k, f64::total_cmp).1
-        };
-        Some((p.z + z.0, sigma, rough))
-    }
-
-    /// Ring points within [`CONSENSUS_TOLERANCE_MM`] of the quadric `coef`, counted until the
-    /// count can no longer exceed `beat` (0: the whole count).
-    fn inliers(&self, coef: &[f64; 6], beat: usize) -> usize {
-        let n = self.pts.len();
-        let mut count = 0;
-        for (seen, q) in self.pts.iter().enumerate() {
-            if count + (n - seen) <= beat {
-                break;
-            }
-            if (q.z - eval_quadric(coef, q.x, q.y)).abs() < CONSENSUS_TOLERANCE_MM {
-                count += 1;
-            }
-        }
-        count
-    }
-
-    /// Consensus fit: of [`CONSENSUS_TRIALS`] least-squares quadrics through random
-    /// [`QUADRIC_MIN_POINTS`]-point subsets (a fixed pseudo-random sequence, so runs repeat),
-    /// the one with the most inliers, refitted to its inliers. Leaves `keep` all set.
-    fn consensus(&mut self) -> Option<(f64, [f64; 6])> {
-        let n = self.pts.len();
-        if n < 2 * QUADRIC_MIN_POINTS {
-            return None;
-        }
-        if self.subsets.len() <= n {
-            self.subsets.resize(n + 1, Vec::new());
-        }
-        if self.subsets[n].is_empty() {
-            self.subsets[n] = consensus_subsets(n);
-        }
-        let mut best: Option<(usize, [f64; 6])> = None;
-        for subset in &self.subsets[n] {
-            let Some(c) = fit_terms::<6>(subset.iter().map(|&i| (self.pts[i as usize], 1.0)))
-            else {
-                continue;
-            };
-            // Only a count above the best so far matters.
-            let count = self.inliers(&c, best.map_or(0, |(b, _)| b));
-            if best.is_none_or(|(b, _)| count > b) {
-                best = Some((count, c));
-            }
-        }
-        let (_, c) = best?;
-        for (q, k) in self.pts.iter().zip(self.keep.iter_mut()) {
-            *k = (q.z - eval_quadric(&c, q.x, q.y)).abs() < CONSENSUS_TOLERANCE_MM;
-        }
-        let refit = self.solve();
-        self.keep.fill(true);
-        refit
-    }
-
-    /// Robust σ̂ (1.4826 · median |residual|) of the kept points under `coef`.
-    fn sigma_of(&mut self, coef: [f64; 6]) -> f64 {
-        self.res.clear();
-        for (q, k) in self.pts.iter().zip(&self.keep) {
-            if *k {
-                self.res.push((q.z - eval_quadric(&coef, q.x, q.y)).abs());
-            }
-        }
-        if self.res.is_empty() {
-            return 0.0;
-        }
-        1.4826 * median(&mut self.res)
-    }
-
-    /// Drops the points whose residual is above the trimming limit; returns σ̂ before.
-    fn trim(&mut self, coef: [f64; 6]) -> f64 {
-        let sigma = self.sigma_of(coef);
-        let limit = (TRIM_SIGMAS * sigma).max(TRIM_MIN_MM);
-        for (q, k) in self.pts.iter().zip(self.keep.iter_mut()) {
-            if (q.z - eval_quadric(&coef, q.x, q.y)).abs() > limit {
-                *k = false;
-            }
-        }
-        sigma
-    }
-
-    /// Least squares over the kept points: a quadric if there are enough and it is well
-    /// conditioned, else a plane. Returns (height at the origin, coefficients).
-    fn solve(&self) -> Option<(f64, [f64; 6])> {
-        let count = self.keep.iter().filter(|k| **k).count();
-        if count >= QUADRIC_MIN_POINTS
-            && let Some(c) = self.solve_terms::<6>()
-        {
-            return Some((c[0], c));
-        }
-        if count >= PLANE_MIN_POINTS
-            && let Some(c) = self.solve_terms::<3>()
-        {
-            return Some((c[0], [c[0], c[1], c[2], 0.0, 0.0, 0.0]));
-        }
-        None
-    }
-
-    /// [`fit_terms`] over the kept points with their weights.
-    fn solve_terms<const K: usize>(&self) -> Option<[f64; K]> {
-        fit_terms::<K>(
-            self.pts
-                .iter()
-                .zip(&self.keep)
-                .zip(&self.weight)
-                .filter(|((_, k), _)| **k)
-                .map(|((q, _), w)| (*q, *w)),
-        )
-    }
-}
-
-/// [`CONSENSUS_TRIALS`] distinct-index subsets of [`QUADRIC_MIN_POINTS`] ring points out of
-/// `n`, each in ring order (a fixed xorshift sequence seeded by `n`, so runs repeat).
-fn consensus_subsets(n: usize) -> Vec<[u32; QUADRIC_MIN_POINTS]> {
-    let mut state: u64 = 0x9E37_79B9_7F4A_7C15 ^ n as u64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
-    (0..CONSENSUS_TRIALS)
-        .map(|_| {
-            let mut subset = [0u32; QUADRIC_MIN_POINTS];
-            let mut chosen = 0;
-            while chosen < QUADRIC_MIN_POINTS {
-                let i = (next() % n as u64) as u32;
-                if !subset[..chosen].contains(&i) {
-                    subset[chosen] = i;
-                    chosen += 1;
-                }
-            }
-            // Ring order, as a mask over the ring would visit them, so the sums are the
-            // same; an index list spares a mispredicted branch per ring point.
-            subset.sort_unstable();
-            subset
-        })
-        .collect()
-}
-
-/// Weighted least squares for the first `K` terms of `[1, x, y, x², xy, y²]` through points
-/// (x, y, z) with weights, in coordinates scaled by the points' RMS radius; `None` if
-/// (nearly) singular.
-fn fit_terms<const K: usize>(
-    points: impl Iterator<Item = (DVec3, f64)> + Clone,
-) -> Option<[f64; K]> {
-    let (mut r2, mut n) = (0.0, 0.0);
-    for (q, _) in points.clone() {
-        r2 += q.x * q.x + q.y * q.y;
-        n += 1.0;
-    }
-    let scale = (r2 / n).sqrt();
-    if !(scale > 1e-9) {
-        return None;
-    }
-    // Upper triangle of AᵀWA and AᵀWz, then an in-place Cholesky: this runs ~10⁵ times
-    // per scan (L1 rounds, consensus trials), so it avoids generic matrix temporaries.
-    let mut ata = [[0.0f64; K]; K];
-    let mut atb = [0.0f64; K];
-    for (q, w) in points {
-        let (x, y) = (q.x / scale, q.y / scale);
-        let all = quadric_terms(x, y);
-        for i in 0..K {
-            let wi = w * all[i];
-            for j in i..K {
-                ata[i][j] += wi * all[j];
-            }
-            atb[i] += wi * q.z;
-        }
-    }
-    // Cholesky A = LLᵀ, L stored in the lower triangle (row i, column j ≤ i).
-    let mut l = [[0.0f64; K]; K];
-    for j in 0..K {
-        let mut d = ata[j][j];
-        for m in 0..j {
-            d -= l[j][m] * l[j][m];
-        }
-        if !(d > 0.0) {
-            return None;
-        }
-        let d = d.sqrt();
-        l[j][j] = d;
-        for i in j + 1..K {
-            let mut s = ata[j][i];
-            for m in 0..j {
-                s -= l[i][m] * l[j][m];
-            }
-            l[i][j] = s / d;
-        }
-    }
-    let (dmin, dmax) = (0..K).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
-        (lo.min(l[i][i]), hi.max(l[i][i]))
-    });
-    // Diagonal of the factor ~ singular values' square roots: reject condition > ~1e8.
-    if !(dmin > 1e-4 * dmax) {
-        return None;
-    }
-    // Forward (L u = b) then back (Lᵀ c = u) substitution.
-    let mut c = atb;
-    for i in 0..K {
-        for m in 0..i {
-            c[i] -= l[i][m] * c[m];
-        }
-        c[i] /= l[i][i];
-    }
-    for i in (0..K).rev() {
-        for m in i + 1..K {
-            c[i] -= l[m][i] * c[m];
-        }
-        c[i] /= l[i][i];
-    }
-    let unscale = [
-        1.0,
-        1.0 / scale,
-        1.0 / scale,
-        1.0 / (scale * scale),
-        1.0 / (scale * scale),
-        1.0 / (scale * scale),
-    ];
-    Some(std::array::from_fn(|i| c[i] * unscale[i]))
-}
-
-/// Points of a vertex's 3-ring within this distance (mm, along z) of a plane through the
-/// vertex count as its support in [`on_real_surface`].
-const SURFACE_SUPPORT_TOLERANCE_MM: f64 = 1.0;
-/// [`on_real_surface`]: the fewest supporting ring points, and the smallest share of the ring.
-/// A spike cluster has at most 5 other members; measured on 100 synthetic scans (3-rings of 24
-/// points on the quad grid), interior spikes had at most 9 supporting points (95 % at most 6,
-/// about a fifth of the ring), the clean crease and lid vertices the filter moved wrongly 5–13
-/// (median 10, half the ring).
-const SURFACE_SUPPORT_MIN_POINTS: usize = 8;
-const SURFACE_SUPPORT_MIN_SHARE: f64 = 1.0 / 3.0;
-
-/// Step-edge test: whether vertex `v`, where it lies in `input`, shares a plane with at least
-/// [`SURFACE_SUPPORT_MIN_POINTS`] and [`SURFACE_SUPPORT_MIN_SHARE`] of its ring (within
-/// [`SURFACE_SUPPORT_TOLERANCE_MM`]). Such a vertex is a sample of a real surface that the
-/// quadric of the whole ring cannot follow (one side of a lid crease, a lip or mouth edge),
-/// not a spike: a spike is off every plane through it but those through its own cluster.
-/// With `min_span_deg`, the supporting points must also span that angle around the vertex
-/// (the filter asks no span; peeling does, see `removal::PEEL_SUPPORT_MIN_SPAN_DEG`).
-/// Tries every plane through the vertex and two ring points (24 points: 276 planes).
-fn on_real_surface(input: &[DVec3], v: usize, ring: &[u32], min_span_deg: Option<f64>) -> bool {
-    let p = input[v];
-    let need = SURFACE_SUPPORT_MIN_POINTS
-        .max((SURFACE_SUPPORT_MIN_SHARE * ring.len() as f64).ceil() as usize);
-    if ring.len() < need {
-        return false;
-    }
-    let q: Vec<DVec3> = ring.iter().map(|&u| input[u as usize] - p).collect();
-    for a in 0..q.len() {
-        for b in a + 1..q.len() {
-            // The plane z = c1 x + c2 y through the vertex, a and b; nearly collinear: none.
-            let det = q[a].x * q[b].y - q[a].y * q[b].x;
-            if det.abs() < 0.5 {
-                continue;
-            }
-            let c1 = (q[a].z * q[b].y - q[a].y * q[b].z) / det;
-            let c2 = (q[a].x * q[b].z - q[a].z * q[b].x) / det;
-            let support = || {
-                q.iter().filter(move |r| {
-                    (r.z - c1 * r.x - c2 * r.y).abs() < SURFACE_SUPPORT_TOLERANCE_MM
-                })
-            };
-            if support().count() >= need
-                && min_span_deg.is_none_or(|min| span_deg(support()) >= min)
-            {
-                return true;
-            }
-        }
-    }
-    false
-}
-
-/// The angle (degrees) that `points` (relative to a vertex) span as seen from it: 360 less
-/// the widest gap between their directions.
-fn span_deg<'a>(points: impl Iterator<Item = &'a DVec3>) -> f64 {
-    let mut angles: Vec<f64> = points.map(|r| r.y.atan2(r.x).to_degrees()).collect();
-    angles.sort_by(f64::total_cmp);
-    let (Some(&first), Some(&last)) = (angles.first(), angles.last()) else {
-        return 0.0;
-    };
-    let gap = angles
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .fold(first + 360.0 - last, f64::max);
-    360.0 - gap
-}
-
-/// An interior vertex that would move (`disp ≥ floor`) but lies on a real surface
-/// ([`on_real_surface`]) does not: its floor becomes infinite.
-fn veto_real_surface(
-    floor: f64,
-    disp: f64,
-    input: &[DVec3],
-    v: usize,
-    ring: &[u32],
-    topology: &Topology,
-) -> f64 {
-    if disp >= floor && !topology.is_boundary[v] && on_real_surface(input, v, ring, None) {
-        f64::INFINITY
-    } else {
-        floor
-    }
-}
-
-/// The smallest change that moves a vertex not yet moved: the displacement floor, `k σ̂` of
-/// its ring, [`RING_ROUGHNESS_RATIO`] × the ring's roughness, and the rim floor on a rim.
-fn eligibility_floor(
-    params: &DenoiseParams,
-    floor: f64,
-    sigma: f64,
-    rough: f64,
-    boundary: bool,
-) -> f64 {
-    let rim = if boundary { params.rim_floor_mm } else { 0.0 };
-    floor
-        .max(params.outlier_sigmas * sigma)
-        .max(RING_ROUGHNESS_RATIO * rough)
-        .max(rim)
-}
-
-/// The quadric's terms `[1, x, y, x², xy, y²]` at (x, y): one row of the fit's design matrix.
-fn quadric_terms(x: f64, y: f64) -> [f64; 6] {
-    [1.0, x, y, x * x, x * y, y * y]
-}
-
-fn eval_quadric(c: &[f64; 6], x: f64, y: f64) -> f64 {
-    c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y
 }
 
 /// Median of a small non-empty list (mean of the two middle values for an even count).

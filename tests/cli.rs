@@ -204,3 +204,47 @@ fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
     let out = facesynth(&["landmarks", metres.to_str().unwrap(), "--units", "mm"]);
     assert!(!out.status.success());
 }
+
+/// A scan whose axes the user knows: `--facing/--up` give them (the same points as the search
+/// finds), and a pair that is not a frame is a one-line error naming the flags.
+#[test]
+fn facing_and_up_give_the_scan_axes() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = common::gavab("cara1_frontal1.wrl");
+    let mut mesh = facesynth::io::read_mesh(&src).unwrap();
+    // Face towards −x, forehead towards +z: (x, y, z) ↦ (−z, −x, y) maps +z to −x and +y to +z.
+    for p in &mut mesh.positions_mm {
+        *p = glam::DVec3::new(-p.z, -p.x, p.y);
+    }
+    mesh.update_normals();
+    let turned = dir.path().join("turned.ply");
+    facesynth::io::write_mesh(&turned, &mesh).unwrap();
+    let t = turned.to_str().unwrap();
+    let searched = json_of(&facesynth(&["landmarks", t]));
+    let given = json_of(&facesynth(&[
+        "landmarks",
+        t,
+        "--facing",
+        "-x",
+        "--up",
+        "+z",
+    ]));
+    assert_eq!(given["orientation"]["facing"], "-x");
+    assert_eq!(given["orientation"]["up"], "+z");
+    assert_eq!(given["suspect"], false, "{}", given["suspect_reasons"]);
+    for (name, p) in searched["landmarks"].as_object().unwrap() {
+        let q = &given["landmarks"][name];
+        let d: f64 = (0..3)
+            .map(|k| (p[k].as_f64().unwrap() - q[k].as_f64().unwrap()).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(d < 2.0, "{name}: {d} mm apart");
+    }
+    let out = facesynth(&["landmarks", t, "--facing", "+z", "--up", "-z"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--facing") && err.contains("perpendicular"),
+        "{err}"
+    );
+}

@@ -571,3 +571,29 @@ fn default_beats_the_baselines_on_generated_scans() {
     assert!(ours.clean_rmse_mm < 0.1, "{ours:?}");
     assert!(ours.rmse_non_spike_mm < 0.2, "{ours:?}");
 }
+
+/// A scan in other axes (facing −x, forehead +z, as some tools export) is denoised as the same
+/// scan in the scanner frame: the filter works along the line of sight, found from the normals
+/// (the same vertices moved and removed, the same positions turned back).
+#[test]
+fn a_scan_in_other_axes_is_denoised_along_its_line_of_sight() {
+    let base = facesynth::io::read_mesh(&common::gavab("cara1_sonrisa.wrl")).unwrap();
+    // (x, y, z) ↦ (−z, −x, y): +z (the line of sight) to −x, +y to +z.
+    let turn = |p: DVec3| DVec3::new(-p.z, -p.x, p.y);
+    let mut turned = base.clone();
+    for p in &mut turned.positions_mm {
+        *p = turn(*p);
+    }
+    turned.update_normals();
+    let mut level = base.clone();
+    let a = denoise(&mut level, &DenoiseParams::default()).unwrap();
+    let b = denoise(&mut turned, &DenoiseParams::default()).unwrap();
+    assert!(a.vertices_removed > 0);
+    assert_eq!(
+        (a.vertices_moved, a.vertices_removed, &a.kept),
+        (b.vertices_moved, b.vertices_removed, &b.kept)
+    );
+    for (p, q) in level.positions_mm.iter().zip(&turned.positions_mm) {
+        assert!((turn(*p) - *q).length() < 1e-9, "{p} vs {q}");
+    }
+}

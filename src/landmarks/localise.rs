@@ -65,6 +65,10 @@ pub struct LocaliseParams {
     /// Search the other 23 axis-aligned orientations when the scanner frame gives no face.
     /// Default true; false trusts the scanner frame (face towards +z, y up).
     pub search_orientations: bool,
+    /// The file's axes where the user knows them (`--facing`, `--up`): the face looks along
+    /// `facing` with its forehead towards `up`, and no other axis frame is searched. Default
+    /// `None`: the scanner frame first, then the search.
+    pub axes: Option<AxisFrame>,
 }
 
 impl Default for LocaliseParams {
@@ -76,6 +80,7 @@ impl Default for LocaliseParams {
             inlier_mm: 4.0,
             face_likeness_min: 0.5,
             search_orientations: true,
+            axes: None,
         }
     }
 }
@@ -134,6 +139,27 @@ impl AxisFrame {
             }
         }
         out
+    }
+
+    /// The frame whose face looks along the axis named `facing` and whose forehead points
+    /// along `up` (`+x`, `-x`, `+y`, `-y`, `+z`, `-z`); an error naming the problem otherwise.
+    pub fn from_names(facing: &str, up: &str) -> std::result::Result<AxisFrame, String> {
+        let index = |name: &str| {
+            AXIS_NAMES.iter().position(|&a| a == name).ok_or_else(|| {
+                format!("`{name}` is not an axis (one of {})", AXIS_NAMES.join(", "))
+            })
+        };
+        let frame = AxisFrame {
+            facing: index(facing)?,
+            up: index(up)?,
+        };
+        if frame.facing / 2 == frame.up / 2 {
+            return Err(format!(
+                "the face cannot look along {facing} with its forehead along {up}: they must \
+                 be perpendicular axes"
+            ));
+        }
+        Ok(frame)
     }
 
     /// Name of the axis the face looks along, e.g. `+z`.
@@ -220,19 +246,27 @@ struct Fit {
     scanner_frame: bool,
 }
 
-/// The start frames, in stages: the scanner frame; the scanner frame with the head pitched
-/// ±30° or turned ±35° (the fit's reach from a start is about that); the 23 other axis frames.
-fn stages(search: bool) -> Vec<Vec<(DMat3, AxisFrame)>> {
-    let scanner = AxisFrame::SCANNER;
-    let mut out = vec![vec![(scanner.face_from_scan(), scanner)]];
-    if search {
+/// The start frames, in stages: the scanner frame (or the given axes); it with the head
+/// pitched ±30° or turned ±35° (the fit's reach from a start is about that); the 23 other axis
+/// frames (not with given axes).
+fn stages(params: &LocaliseParams) -> Vec<Vec<(DMat3, AxisFrame)>> {
+    let base = params.axes.unwrap_or(AxisFrame::SCANNER);
+    let mut out = vec![vec![(base.face_from_scan(), base)]];
+    if params.search_orientations || params.axes.is_some() {
         let tilted = [
             DMat3::from_rotation_x(30f64.to_radians()),
             DMat3::from_rotation_x(-30f64.to_radians()),
             DMat3::from_rotation_y(35f64.to_radians()),
             DMat3::from_rotation_y(-35f64.to_radians()),
         ];
-        out.push(tilted.iter().map(|&r| (r, scanner)).collect());
+        out.push(
+            tilted
+                .iter()
+                .map(|&r| (r * base.face_from_scan(), base))
+                .collect(),
+        );
+    }
+    if params.search_orientations && params.axes.is_none() {
         out.push(
             AxisFrame::all()
                 .into_iter()
@@ -258,7 +292,7 @@ pub fn localise(mesh: &Mesh, params: &LocaliseParams) -> Result<Localisation> {
             .map(|f| f.likeness)
             .fold(f64::NEG_INFINITY, f64::max)
     };
-    for (k, stage) in stages(params.search_orientations).into_iter().enumerate() {
+    for (k, stage) in stages(params).into_iter().enumerate() {
         // The scanner frame is trusted outright only with a clearly face-like fit; the tilted
         // starts are tried otherwise (a strongly pitched head needs them); the other axis
         // frames only where still nothing is face-like.

@@ -270,29 +270,30 @@ pub struct LandmarkReport {
 /// hidden and the nine steps, built for frontal faces, place points on what is left.
 pub const PROFILE_MIN_YAW_DEG: f64 = 35.0;
 
-/// Why a detection is suspect (empty: it is not): its face-likeness is below
+/// Why a detection is suspect (empty: it is not), from the localisation and the head's yaw
+/// against the line of sight, degrees: its face-likeness is below
 /// [`localise::LocaliseParams::face_likeness_min`] (not a face, or most of it missing), the
 /// head is turned into a profile ([`PROFILE_MIN_YAW_DEG`]), or one of the nine anatomical
 /// points (all but cheeks and forehead, which are region borders) had to be guessed at its
 /// Table 2 average position.
 pub fn suspect_reasons(
-    localisation: Option<&localise::Localisation>,
+    localisation: Option<(&localise::Localisation, f64)>,
     guessed: &[FeaturePoint],
     params: &localise::LocaliseParams,
 ) -> Vec<String> {
     let mut out = Vec::new();
-    if let Some(l) = localisation {
+    if let Some((l, yaw)) = localisation {
         if l.face_likeness < params.face_likeness_min {
             out.push(format!(
-                "face-likeness {:.2} is below {}: only {:.0} % of the generic face's upper part \
-                 lies within {} mm of the scan (not a face, or most of it missing)",
+                "face-likeness {:.2} is below {}: only {:.0} % of the generic face lies within \
+                 {} mm of the scan (not a face, most of it missing, or the face's direction not \
+                 found: give it with --facing and --up)",
                 l.face_likeness,
                 params.face_likeness_min,
                 100.0 * l.face_likeness,
                 params.inlier_mm
             ));
         }
-        let (yaw, _, _) = localise::yaw_pitch_roll_deg(l.face_from_scan);
         if yaw.abs() > PROFILE_MIN_YAW_DEG {
             out.push(format!(
                 "the head is turned {yaw:.0}° (a profile; the feature steps need a face within \
@@ -454,7 +455,8 @@ pub fn detect_with(
             .landmarks
             .set(p, scan_from_face * report.landmarks.get(p));
     }
-    report.suspect = suspect_reasons(Some(&found), &report.guessed, &localise_params);
+    let yaw_deg = yaw_from_line_of_sight(mesh, found.face_from_scan);
+    report.suspect = suspect_reasons(Some((&found, yaw_deg)), &report.guessed, &localise_params);
     report.localisation = Some(found);
     Ok(report)
 }
@@ -480,6 +482,25 @@ fn steps_frame(mesh: &Mesh, located: glam::DMat3) -> glam::DMat3 {
     let y = (face_y - z * face_y.dot(z)).normalize_or(face_y);
     let x = y.cross(z);
     glam::DMat3::from_cols(x, y, z).transpose()
+}
+
+/// The head's turn (degrees) against the line of sight, whatever the file's axes: the angle,
+/// about the located face's up axis, from the scan's mean vertex normal (a single-view scan
+/// faces its scanner) to the located face's direction. 0 for a closed mesh (no line of sight).
+fn yaw_from_line_of_sight(mesh: &Mesh, located: glam::DMat3) -> f64 {
+    let face = located.transpose();
+    let (up, facing) = (face.y_axis, face.z_axis);
+    let mean = mesh.normals.iter().copied().sum::<glam::DVec3>();
+    let mut sight = (mean - up * mean.dot(up)).normalize_or_zero();
+    if sight == glam::DVec3::ZERO {
+        return 0.0;
+    }
+    // Normals wound the other way round point into the head.
+    if sight.dot(facing) < 0.0 {
+        sight = -sight;
+    }
+    let across = up.cross(sight);
+    facing.dot(across).atan2(facing.dot(sight)).to_degrees()
 }
 
 /// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have

@@ -1,0 +1,109 @@
+//! Learned within-class deviations: other people's expression − neutral range images, added to
+//! the augmented run's within-class scatter.
+
+use super::*;
+
+/// The scans of the expression training set `dir` that [`learned_deviations`] uses (gallery
+/// and probe kinds); a set sharing a subject with `dataset_scans` is refused (a probe's own
+/// expressions would be learned). Checked before any scan is read.
+pub(super) fn training_scans(
+    dir: &Path,
+    dataset_scans: &[ScanFile],
+    params: &ProtocolParams,
+) -> Result<Vec<ScanFile>> {
+    let scans = protocol_scans(dir, params)?;
+    let mut shared: Vec<&str> = scans
+        .iter()
+        .filter(|t| dataset_scans.iter().any(|s| s.subject == t.subject))
+        .map(|t| t.subject.as_str())
+        .collect();
+    shared.dedup();
+    if !shared.is_empty() {
+        return Err(Error::invalid(
+            dir,
+            format!(
+                "expression training set shares {} subject(s) with the dataset ({}…): their own \
+                 expressions would be learned; train on other people",
+                shared.len(),
+                shared[..shared.len().min(3)].join(", ")
+            ),
+        ));
+    }
+    Ok(scans)
+}
+
+/// The within-class deviations learned from the expression training `scans` (from
+/// [`training_scans`], folder `dir`): for each person there with a gallery-kind scan, every
+/// probe-kind scan's range image minus that gallery scan's, both posed as the evaluated scans
+/// are (`reference`: the evaluated gallery's alignment reference, so the deviations live in
+/// the same frame). Scans that fail are added to `failures` and skipped.
+pub(super) fn learned_deviations(
+    dir: &Path,
+    scans: &[ScanFile],
+    params: &ProtocolParams,
+    generic: &GenericFace,
+    reference: Option<&RangeImage>,
+    failures: &mut Vec<Failure>,
+) -> Result<(Vec<Vec<f64>>, Vec<String>)> {
+    let images: Vec<Option<Sample>> = scans
+        .par_iter()
+        .map(|s| {
+            let start = scan_pose(&s.path, params, generic, None).map_err(|e| Failure {
+                file: s.path.clone(),
+                reason: format!("expression training: {e}"),
+            })?;
+            make_sample(&s.path, start, &s.subject, &s.scan, params, reference)
+                .map(|(sample, _)| sample)
+                .map_err(|f| Failure {
+                    reason: format!("expression training: {}", f.reason),
+                    ..f
+                })
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .map(|r| r.map_err(|f| failures.push(f)).ok())
+        .collect();
+    // Each person's first gallery-kind scan that gave an image.
+    let mut neutral: BTreeMap<&str, &Sample> = BTreeMap::new();
+    for (s, img) in scans.iter().zip(&images) {
+        if let Some(img) = img
+            .as_ref()
+            .filter(|_| params.gallery_scans.contains(&s.scan))
+        {
+            neutral.entry(s.subject.as_str()).or_insert(img);
+        }
+    }
+    let mut deviations = Vec::new();
+    let mut subjects: Vec<String> = Vec::new();
+    for (s, img) in scans.iter().zip(&images) {
+        let (Some(expression), Some(neutral)) = (
+            img.as_ref()
+                .filter(|_| params.probe_scans.contains(&s.scan)),
+            neutral.get(s.subject.as_str()),
+        ) else {
+            continue;
+        };
+        deviations.push(
+            expression
+                .features
+                .iter()
+                .zip(&neutral.features)
+                .map(|(e, n)| e - n)
+                .collect(),
+        );
+        if subjects.last() != Some(&s.subject) {
+            subjects.push(s.subject.clone());
+        }
+    }
+    if deviations.is_empty() {
+        return Err(Error::invalid(
+            dir,
+            format!(
+                "no person with a {} scan and a {} scan that both gave range images",
+                params.gallery_scans.join("|"),
+                params.probe_scans.join("|")
+            ),
+        ));
+    }
+    Ok((deviations, subjects))
+}

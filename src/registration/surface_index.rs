@@ -1,0 +1,208 @@
+//! Closest points on a scan surface: a uniform grid of triangles by bounding box.
+
+use super::*;
+
+/// Distances from points to a mesh surface (exact point-to-triangle), through a uniform 3D
+/// grid of triangles by bounding box.
+#[derive(Debug, Clone)]
+pub struct SurfaceIndex {
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    min: DVec3,
+    /// The grid's far corner (`min + dims · cell`): it covers every triangle.
+    max: DVec3,
+    cell: f64,
+    dims: [usize; 3],
+    offsets: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl SurfaceIndex {
+    pub fn new(mesh: &Mesh, cell_mm: f64) -> Self {
+        let triangles = mesh.triangles();
+        let positions = mesh.positions_mm.clone();
+        let (lo, hi) = mesh.bbox_mm().unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        // Cells grow until the grid holds at most a few per triangle, and at most 1024 along
+        // any axis: a scan with one vertex far away would otherwise ask for a billion cells.
+        // (Growing the cell, not clamping the count, keeps the whole bounding box covered.)
+        let budget = (4 * triangles.len()).max(1 << 12) as f64;
+        let mut cell = cell_mm.max(1e-3);
+        let extent = hi - lo;
+        let counts = |cell: f64| [0, 1, 2].map(|k| (extent[k] / cell).floor() + 1.0);
+        while counts(cell).iter().product::<f64>() > budget
+            || counts(cell).iter().any(|&n| n > 1024.0)
+        {
+            cell *= 2.0;
+        }
+        let dims = counts(cell).map(|n| n as usize);
+        let cell_of = |p: DVec3| -> [usize; 3] {
+            [0, 1, 2].map(|k| (((p[k] - lo[k]) / cell).floor().max(0.0) as usize).min(dims[k] - 1))
+        };
+        let ncell = dims[0] * dims[1] * dims[2];
+        let bounds: Vec<([usize; 3], [usize; 3])> = triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|v| positions[v as usize]);
+                (
+                    cell_of(p[0].min(p[1]).min(p[2])),
+                    cell_of(p[0].max(p[1]).max(p[2])),
+                )
+            })
+            .collect();
+        let idx = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
+        let mut counts = vec![0u32; ncell + 1];
+        for (a, b) in &bounds {
+            for k in a[2]..=b[2] {
+                for j in a[1]..=b[1] {
+                    for i in a[0]..=b[0] {
+                        counts[idx(i, j, k) + 1] += 1;
+                    }
+                }
+            }
+        }
+        for c in 1..counts.len() {
+            counts[c] += counts[c - 1];
+        }
+        let mut fill = counts.clone();
+        let mut items = vec![0u32; counts[ncell] as usize];
+        for (t, (a, b)) in bounds.iter().enumerate() {
+            for k in a[2]..=b[2] {
+                for j in a[1]..=b[1] {
+                    for i in a[0]..=b[0] {
+                        let c = idx(i, j, k);
+                        items[fill[c] as usize] = t as u32;
+                        fill[c] += 1;
+                    }
+                }
+            }
+        }
+        SurfaceIndex {
+            positions,
+            triangles,
+            min: lo,
+            max: lo + DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64) * cell,
+            cell,
+            dims,
+            offsets: counts,
+            items,
+        }
+    }
+
+    /// Distance from `p` to the surface, mm; `max_mm` if nothing is closer.
+    pub fn distance(&self, p: DVec3, max_mm: f64) -> f64 {
+        self.closest(p, max_mm).map_or(max_mm, |(d, _)| d)
+    }
+
+    /// The closest surface point within `max_mm`: (distance, point).
+    pub fn closest(&self, p: DVec3, max_mm: f64) -> Option<(f64, DVec3)> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        // Nothing within reach of the grid: answer at once instead of widening the search to
+        // `max_mm` over empty cells (a registration far off the scan made this slow; found by
+        // fuzzing the pipeline).
+        let outside = (self.min - p).max(p - self.max).max(DVec3::ZERO);
+        if !(outside.length() <= max_mm) {
+            return None;
+        }
+        let mut r = self.cell;
+        // The best so far and the box of cells already searched: each round searches only the
+        // cells its wider box adds.
+        let mut best: Option<(f64, DVec3)> = None;
+        let mut searched: Option<([usize; 3], [usize; 3])> = None;
+        loop {
+            let r_eff = r.min(max_mm);
+            let lo = [0, 1, 2].map(|k| ((p[k] - r_eff - self.min[k]) / self.cell).floor());
+            let hi = [0, 1, 2].map(|k| ((p[k] + r_eff - self.min[k]) / self.cell).floor());
+            if (0..3).all(|k| hi[k] >= 0.0 && lo[k] < self.dims[k] as f64) {
+                let lo = [0, 1, 2].map(|k| lo[k].max(0.0) as usize);
+                let hi = [0, 1, 2].map(|k| (hi[k] as usize).min(self.dims[k] - 1));
+                let seen = |i: [usize; 3]| {
+                    searched.is_some_and(|(a, b)| (0..3).all(|k| a[k] <= i[k] && i[k] <= b[k]))
+                };
+                for kz in lo[2]..=hi[2] {
+                    for jy in lo[1]..=hi[1] {
+                        for ix in lo[0]..=hi[0] {
+                            if seen([ix, jy, kz]) {
+                                continue;
+                            }
+                            let c = (kz * self.dims[1] + jy) * self.dims[0] + ix;
+                            for &t in
+                                &self.items[self.offsets[c] as usize..self.offsets[c + 1] as usize]
+                            {
+                                let [a, b, cc] =
+                                    self.triangles[t as usize].map(|v| self.positions[v as usize]);
+                                // A triangle whose bounding box is no nearer than the best
+                                // so far cannot beat it (and a triangle spanning several
+                                // cells comes up once per cell).
+                                if let Some((bd, _)) = best {
+                                    let gap = (a.min(b).min(cc) - p)
+                                        .max(p - a.max(b).max(cc))
+                                        .max(DVec3::ZERO);
+                                    if gap.length_squared() >= bd {
+                                        continue;
+                                    }
+                                }
+                                let q = closest_point_on_triangle(p, a, b, cc);
+                                let d2 = q.distance_squared(p);
+                                if best.is_none_or(|(bd, _)| d2 < bd) {
+                                    best = Some((d2, q));
+                                }
+                            }
+                        }
+                    }
+                }
+                searched = Some((lo, hi));
+            }
+            // Once the box holds the whole grid, a wider one finds nothing more.
+            let whole = (0..3).all(|k| lo[k] <= 0.0 && hi[k] >= self.dims[k] as f64 - 1.0);
+            if let Some((d2, q)) = best
+                && (d2.sqrt() <= r_eff || whole)
+            {
+                return (d2.sqrt() <= max_mm).then_some((d2.sqrt(), q));
+            }
+            if r_eff >= max_mm || whole {
+                return None;
+            }
+            r *= 2.0;
+        }
+    }
+}
+
+/// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5).
+pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
