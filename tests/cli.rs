@@ -205,8 +205,9 @@ fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
     assert!(!out.status.success());
 }
 
-/// A scan whose axes the user knows: `--facing/--up` give them (the same points as the search
-/// finds), and a pair that is not a frame is a one-line error naming the flags.
+/// A scan in other axes (facing −x, forehead +z): the search finds its face, `--facing/--up`
+/// give the same points, `register` the same fit as in the scanner frame, and a pair that is
+/// not a frame is a one-line error naming the flags.
 #[test]
 fn facing_and_up_give_the_scan_axes() {
     let dir = tempfile::tempdir().unwrap();
@@ -239,6 +240,16 @@ fn facing_and_up_give_the_scan_axes() {
             .sum::<f64>()
             .sqrt();
         assert!(d < 2.0, "{name}: {d} mm apart");
+    }
+    // Registration on the file in other axes: the same fit as on the scan in its own frame.
+    let reg = |path: &str| json_of(&facesynth(&["register", path]));
+    let (a, b) = (reg(src.to_str().unwrap()), reg(t));
+    for key in ["rigid_rms_mm", "unmatched_vertices"] {
+        let (x, y) = (a[key].as_f64().unwrap(), b[key].as_f64().unwrap());
+        assert!(
+            (x - y).abs() <= 1e-3 * x.abs().max(1.0),
+            "{key}: {x} vs {y}"
+        );
     }
     let out = facesynth(&["landmarks", t, "--facing", "+z", "--up", "-z"]);
     assert_eq!(out.status.code(), Some(1));

@@ -24,7 +24,9 @@ impl SurfaceIndex {
         let (lo, hi) = mesh.bbox_mm().unwrap_or((DVec3::ZERO, DVec3::ZERO));
         // Cells grow until the grid holds at most a few per triangle, and at most 1024 along
         // any axis: a scan with one vertex far away would otherwise ask for a billion cells.
-        // (Growing the cell, not clamping the count, keeps the whole bounding box covered.)
+        // (Growing the cell, not clamping the count, keeps the whole bounding box covered; in
+        // steps of 1.25, not 2, so the cells end near the budget: a query's cost grows with
+        // the triangles per cell.)
         let budget = (4 * triangles.len()).max(1 << 12) as f64;
         let mut cell = cell_mm.max(1e-3);
         let extent = hi - lo;
@@ -32,7 +34,7 @@ impl SurfaceIndex {
         while counts(cell).iter().product::<f64>() > budget
             || counts(cell).iter().any(|&n| n > 1024.0)
         {
-            cell *= 2.0;
+            cell *= 1.25;
         }
         let dims = counts(cell).map(|n| n as usize);
         let cell_of = |p: DVec3| -> [usize; 3] {
@@ -106,26 +108,17 @@ impl SurfaceIndex {
             return None;
         }
         let mut r = self.cell;
-        // The best so far and the box of cells already searched: each round searches only the
-        // cells its wider box adds.
-        let mut best: Option<(f64, DVec3)> = None;
-        let mut searched: Option<([usize; 3], [usize; 3])> = None;
         loop {
             let r_eff = r.min(max_mm);
             let lo = [0, 1, 2].map(|k| ((p[k] - r_eff - self.min[k]) / self.cell).floor());
             let hi = [0, 1, 2].map(|k| ((p[k] + r_eff - self.min[k]) / self.cell).floor());
+            let mut best: Option<(f64, DVec3)> = None;
             if (0..3).all(|k| hi[k] >= 0.0 && lo[k] < self.dims[k] as f64) {
                 let lo = [0, 1, 2].map(|k| lo[k].max(0.0) as usize);
                 let hi = [0, 1, 2].map(|k| (hi[k] as usize).min(self.dims[k] - 1));
-                let seen = |i: [usize; 3]| {
-                    searched.is_some_and(|(a, b)| (0..3).all(|k| a[k] <= i[k] && i[k] <= b[k]))
-                };
                 for kz in lo[2]..=hi[2] {
                     for jy in lo[1]..=hi[1] {
                         for ix in lo[0]..=hi[0] {
-                            if seen([ix, jy, kz]) {
-                                continue;
-                            }
                             let c = (kz * self.dims[1] + jy) * self.dims[0] + ix;
                             for &t in
                                 &self.items[self.offsets[c] as usize..self.offsets[c + 1] as usize]
@@ -152,7 +145,6 @@ impl SurfaceIndex {
                         }
                     }
                 }
-                searched = Some((lo, hi));
             }
             // Once the box holds the whole grid, a wider one finds nothing more.
             let whole = (0..3).all(|k| lo[k] <= 0.0 && hi[k] >= self.dims[k] as f64 - 1.0);
