@@ -260,6 +260,13 @@ fn expressions_learned_from_other_people_join_the_within_class_scatter() {
         let name = format!("other{}_{}.wrl", s.subject, s.scan);
         std::fs::copy(&s.path, training.path().join(name)).unwrap();
     }
+    // A profile (a real scan turned 44°) among them is posed by the generic face's fit and
+    // listed as suspect; its person has no gallery-kind scan, so it adds no deviation.
+    std::fs::copy(
+        common::gavab("cara1_derecha.wrl"),
+        training.path().join("profile_risa.wrl"),
+    )
+    .unwrap();
     // A broken training scan is listed, not fatal.
     std::fs::write(
         training.path().join("broken_risa.wrl"),
@@ -276,6 +283,16 @@ fn expressions_learned_from_other_people_join_the_within_class_scatter() {
     assert_eq!(samples.training_subjects.len(), 4);
     assert_eq!(samples.failures.len(), 1, "{:?}", samples.failures);
     assert!(samples.failures[0].file.ends_with("broken_risa.wrl"));
+    assert!(
+        samples
+            .suspect
+            .iter()
+            .any(|f| f.file.ends_with("profile_risa.wrl")
+                && f.reason
+                    .starts_with("expression training: suspect feature points")),
+        "{:?}",
+        samples.suspect
+    );
     assert!(
         samples.failures[0]
             .reason

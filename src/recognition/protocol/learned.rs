@@ -36,32 +36,48 @@ pub(super) fn training_scans(
 /// [`training_scans`], folder `dir`): for each person there with a gallery-kind scan, every
 /// probe-kind scan's range image minus that gallery scan's, both posed as the evaluated scans
 /// are (`reference`: the evaluated gallery's alignment reference, so the deviations live in
-/// the same frame). Scans that fail are added to `failures` and skipped.
+/// the same frame). Scans that fail are added to `failures` and skipped; scans posed despite
+/// suspect feature points ([`scan_pose_checked`]) are added to `suspect`.
 pub(super) fn learned_deviations(
     dir: &Path,
     scans: &[ScanFile],
     params: &ProtocolParams,
     generic: &GenericFace,
     reference: Option<&RangeImage>,
-    failures: &mut Vec<Failure>,
+    (failures, suspect): (&mut Vec<Failure>, &mut Vec<Failure>),
 ) -> Result<(Vec<Vec<f64>>, Vec<String>)> {
-    let images: Vec<Option<Sample>> = scans
+    const CONTEXT: &str = "expression training: ";
+    let results: Vec<(std::result::Result<Sample, Failure>, Vec<String>)> = scans
         .par_iter()
         .map(|s| {
-            let start = scan_pose(&s.path, params, generic, None).map_err(|e| Failure {
-                file: s.path.clone(),
-                reason: format!("expression training: {e}"),
-            })?;
-            make_sample(&s.path, start, &s.subject, &s.scan, params, reference)
+            let (start, reasons) = match scan_pose_checked(&s.path, params, generic, None) {
+                Ok(posed) => posed,
+                Err(e) => {
+                    let failure = Failure {
+                        file: s.path.clone(),
+                        reason: format!("{CONTEXT}{e}"),
+                    };
+                    return (Err(failure), Vec::new());
+                }
+            };
+            let sample = make_sample(&s.path, start, &s.subject, &s.scan, params, reference)
                 .map(|(sample, _)| sample)
                 .map_err(|f| Failure {
-                    reason: format!("expression training: {}", f.reason),
+                    reason: format!("{CONTEXT}{}", f.reason),
                     ..f
-                })
+                });
+            (sample, reasons)
         })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .map(|r| r.map_err(|f| failures.push(f)).ok())
+        .collect();
+    let images: Vec<Option<Sample>> = scans
+        .iter()
+        .zip(results)
+        .map(|(s, (r, reasons))| {
+            if !reasons.is_empty() {
+                suspect.push(suspect_scan(&s.path, &reasons, CONTEXT));
+            }
+            r.map_err(|f| failures.push(f)).ok()
+        })
         .collect();
     // Each person's first gallery-kind scan that gave an image.
     let mut neutral: BTreeMap<&str, &Sample> = BTreeMap::new();

@@ -499,13 +499,7 @@ pub fn collect_samples(
         .map(|(s, r)| {
             r.map(|(pose, reasons)| {
                 if !reasons.is_empty() {
-                    suspect.push(Failure {
-                        file: s.path.clone(),
-                        reason: format!(
-                            "suspect feature points ({}); posed by the generic face's fit instead",
-                            reasons.join("; ")
-                        ),
-                    });
+                    suspect.push(suspect_scan(&s.path, &reasons, ""));
                 }
                 pose
             })
@@ -589,9 +583,14 @@ pub fn collect_samples(
     }
     stage("synthetic_images");
     let (deviations, training_subjects) = match (&params.expression_training, &training) {
-        (Some(dir), Some(t)) => {
-            learned_deviations(dir, t, params, &generic, reference.as_ref(), &mut failures)?
-        }
+        (Some(dir), Some(t)) => learned_deviations(
+            dir,
+            t,
+            params,
+            &generic,
+            reference.as_ref(),
+            (&mut failures, &mut suspect),
+        )?,
         _ => (Vec::new(), Vec::new()),
     };
     stage("learned_deviations");

@@ -124,3 +124,15 @@ pub fn scan_pose_checked(
         )),
     }
 }
+
+/// The report's line for a scan kept with suspect feature points (`reasons`), posed by face
+/// localisation's fit instead; `context` prefixes the reason (e.g. `expression training: `).
+pub(super) fn suspect_scan(path: &Path, reasons: &[String], context: &str) -> Failure {
+    Failure {
+        file: path.to_path_buf(),
+        reason: format!(
+            "{context}suspect feature points ({}); posed by the generic face's fit instead",
+            reasons.join("; ")
+        ),
+    }
+}
