@@ -9,59 +9,8 @@
 //! failure. Neutral scans (`frontal1`, `frontal2`) and expression scans (`sonrisa`, `risa`,
 //! `gesto`) are reported separately.
 //!
-//! # Measured (`facesynth eval-landmarks`, denoised first, default parameters)
-//!
-//! `synth_gavab.py --subjects 30 --seed 7` (150 noisy scans: spikes, holes, hair band,
-//! σ = 0.15 mm noise, ±6° pose). Error in mm; "≤ 10" = share of scans within 10 mm.
-//!
-//! | point | neutral (60) mean | p95 | max | ≤ 10 | expression (90) mean | p95 | max | ≤ 10 |
-//! |---|---|---|---|---|---|---|---|---|
-//! | nose tip | 2.26 | 3.65 | 4.0 | 100 % | 2.58 | 3.87 | 45.9 | 99 % |
-//! | inner eye left | 2.76 | 5.72 | 6.7 | 100 % | 2.97 | 5.32 | 34.5 | 99 % |
-//! | inner eye right | 2.61 | 5.34 | 7.7 | 100 % | 2.94 | 5.79 | 29.3 | 99 % |
-//! | outer eye left | 4.30 | 8.93 | 10.4 | 98 % | 4.66 | 8.87 | 50.9 | 96 % |
-//! | outer eye right | 4.57 | 7.89 | 9.2 | 100 % | 4.04 | 7.70 | 26.5 | 97 % |
-//! | nose corner left | 2.56 | 5.10 | 7.7 | 100 % | 3.97 | 9.99 | 49.2 | 96 % |
-//! | nose corner right | 2.41 | 4.25 | 5.9 | 100 % | 3.57 | 6.96 | 44.6 | 99 % |
-//! | mouth corner left | 2.57 | 6.03 | 7.1 | 100 % | 6.75 | 13.14 | 84.5 | 92 % |
-//! | mouth corner right | 2.69 | 5.96 | 12.4 | 98 % | 7.02 | 12.67 | 93.5 | 93 % |
-//! | chin | 3.37 | 5.77 | 10.0 | 98 % | 5.45 | 10.44 | 82.4 | 93 % |
-//!
-//! Success (all visible points within 10 mm): **neutral 95.0 %** (frontal1 29/30, frontal2
-//! 28/30) — short of the 97 % goal; expression 80.0 % (sonrisa 28/30, risa 25/30, gesto
-//! 19/30). Every scan gave 13 points (no detection failure). Outer eye corners are scored on
-//! 78 of 90 expression scans (the others are hidden by closed lids). The three neutral
-//! failures are single points just past 10 mm (a mouth corner 12.4 mm, the chin 10.0 mm, an
-//! outer eye corner 10.4 mm). On expressions what fails is mostly the mouth corners of
-//! puckered or sideways mouths (gesto) and of open-mouth laughs, and isolated gross errors
-//! (the max column) where a gesture moves a feature out of its Table 2 box.
-//!
-//! # Systematic offsets (`mean_offset_mm`)
-//!
-//! Each error is also kept as a vector in the detection's face frame (lateral away from the
-//! midline, up, towards the scanner), and each point's mean vector is reported: the part of
-//! the error that is the same on every scan, i.e. where the detector's point and the
-//! benchmark's differ by definition rather than by noise. Seeds 31–33, 180 neutral scans, mm:
-//!
-//! | point | mean error | mean offset (lateral, up, depth) |
-//! |---|---|---|
-//! | nose tip | 2.25 | (−0.05, −1.96, 0.24) |
-//! | inner eye left / right | 2.35 / 2.32 | (−0.20, 1.04, 0.04) / (−0.20, 1.08, 0.01) |
-//! | outer eye left / right | 1.52 / 1.60 | (0.04, 0.14, −0.01) / (0.08, 0.12, 0.01) |
-//! | nose corner left / right | 2.16 / 2.29 | (0.90, −0.54, −0.55) / (1.07, −0.50, −0.72) |
-//! | mouth corner left / right | 2.15 / 2.25 | (−0.10, −0.73, −0.39) / (0.21, −0.84, −0.49) |
-//! | chin | 3.07 | (−0.27, 1.21, 1.64) |
-//!
-//! (Inner and outer eyes since the fissure step of landmarks step 3, stop 28; before it
-//! 3.12 / 3.22 at (−0.87, 1.51, 0.37) / (−0.98, 1.62, 0.35) and 3.01 / 3.17. Outer eyes
-//! since the fissure step of step 4, stop 34; before it 2.80 / 2.97 at (0.24, 0.10, −0.11)
-//! / (0.31, 0.05, −0.15): no offset to remove, the error was scatter along the fissure.)
-//! The nose tip (the most protruding point) lies 2 mm below the benchmark's iBUG 30, and the
-//! inner-eye pit lay 1.5 mm above and 0.9 mm medial of its iBUG 39/42 (1.0 mm above since the
-//! fissure step): most of those points' error. Subtracting the (old) inner-eye offset gave
-//! 2.92 / 2.94 mm (held-out seed 34: 2.84 / 2.48), but on the real scans' zoomed eye pictures the pit already sits at the medial end of the lid
-//! fissure, or below it, and the moved point 1–2 mm below the fissure; so the offset is the
-//! benchmark's eye model, not a detector error real scans share, and it is not subtracted.
+//! Measured accuracy on the benchmark (per point, with the mean offsets) and the command:
+//! `docs/measurements.md`, "Feature points: benchmark accuracy".
 
 use super::{Frame, LandmarkParams, detect};
 use crate::denoise;
