@@ -33,6 +33,7 @@ pub mod pipeline;
 pub mod recognition;
 /// Registration of the generic face to a scan: Horn alignment, planar warp, cylindrical Z.
 pub mod registration;
+pub mod view_options;
 
 /// The editor window: eframe app, panels, worker thread.
 #[cfg(feature = "gui")]

@@ -278,7 +278,7 @@ fn cli_register_writes_mesh_and_report() {
     // Detected cheek and forehead borders do not drive the registration (pipeline docs).
     assert_eq!(
         v["landmark_residual_mm"].as_object().unwrap().len(),
-        13 - facesynth::pipeline::BORDER_POINTS.len()
+        13 - facesynth::FeaturePoint::BORDER.len()
     );
 }
 
@@ -470,7 +470,7 @@ fn evaluation_table_with_detected_landmarks() {
             let points: Vec<(FeaturePoint, DVec3)> = found
                 .landmarks
                 .iter()
-                .filter(|(p, _)| !facesynth::pipeline::BORDER_POINTS.contains(p))
+                .filter(|(p, _)| !facesynth::FeaturePoint::BORDER.contains(p))
                 .collect();
             match registration::evaluate(
                 &generic,

@@ -476,7 +476,7 @@ impl Document {
                 // Detected cheek/forehead borders are left out, as in the pipeline, unless the
                 // user has placed them (then they are meant as the generic face's points).
                 let border_detected = self.detection.as_ref().is_some_and(|d| {
-                    crate::pipeline::BORDER_POINTS
+                    crate::FeaturePoint::BORDER
                         .iter()
                         .all(|&p| d.report.landmarks.get(p) == landmarks.get(p))
                 });

@@ -11,10 +11,10 @@ pub mod undo;
 mod viewport_ui;
 pub mod worker;
 
-use crate::cli::{Overlay, ViewArgs};
 use crate::feature_points::FeaturePoint;
 use crate::generic_face;
 use crate::render::{OrbitCamera, ViewportRenderer};
+use crate::view_options::{Overlay, ViewArgs};
 use anyhow::{Result, anyhow};
 use document::{Command, Document};
 use eframe::egui;
@@ -145,8 +145,8 @@ impl Default for LayerView {
 }
 
 impl LayerView {
-    fn from_args(shown: crate::cli::LayersShown, muscles: bool) -> Self {
-        use crate::cli::LayersShown::*;
+    fn from_args(shown: crate::view_options::LayersShown, muscles: bool) -> Self {
+        use crate::view_options::LayersShown::*;
         let all = shown != Skin;
         LayerView {
             fat: all,
@@ -267,7 +267,8 @@ impl EditorApp {
         let mut view = settings.view;
         if args.layers.is_some() || args.muscles {
             view.layers = LayerView::from_args(
-                args.layers.unwrap_or(crate::cli::LayersShown::Skin),
+                args.layers
+                    .unwrap_or(crate::view_options::LayersShown::Skin),
                 args.muscles,
             );
         }

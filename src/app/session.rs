@@ -21,8 +21,8 @@
 //! Relative paths are taken from the current directory.
 
 use super::document::{Command, Document};
-use crate::cli::{LayersShown, Overlay};
 use crate::feature_points::FeaturePoint;
+use crate::view_options::{LayersShown, Overlay};
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 

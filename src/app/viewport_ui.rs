@@ -4,7 +4,6 @@
 
 use super::{EditorApp, LayerView, feature_colour};
 use crate::Mesh;
-use crate::cli::Overlay;
 use crate::feature_points::FeaturePoint;
 use crate::mesh::pick::ray_hit;
 use crate::mesh::simplify;
@@ -12,6 +11,7 @@ use crate::render::colormap::ColourScale;
 use crate::render::{
     DrawStyle, MarkerInstance, MeshData, OrbitCamera, SceneItem, ViewportCallback,
 };
+use crate::view_options::Overlay;
 use eframe::{egui, egui_wgpu};
 use glam::DVec3;
 use std::sync::Arc;

@@ -25,7 +25,7 @@ impl Detector<'_> {
     /// and mouth height on the other on half the real scans, and further out than the generic
     /// face's cheek point (the cheek at the nose tip's height, 12 % of the outer-eye distance
     /// beyond the outer eye corner: [`crate::registration::truth_points`]). (The pipeline
-    /// still registers without detected cheeks, [`crate::pipeline::BORDER_POINTS`].)
+    /// still registers without detected cheeks, [`FeaturePoint::BORDER`].)
     pub(super) fn cheek(&mut self, frame: &Frame, outer: usize, side: f64) -> usize {
         let au = frame.uv(self.p(outer)).x.abs();
         let h = CHEEK_STRIP_HALF_MM;

@@ -22,10 +22,6 @@ pub use fem_model::{
 };
 pub use transfer::{CavityParams, TransferWeights, mouth_cavity, transfer_expression};
 
-/// Feature points the detector finds as borders of the face region rather than as anatomical
-/// points (see [`prepare_mesh`]).
-pub const BORDER_POINTS: [crate::FeaturePoint; 3] = crate::FeaturePoint::BORDER;
-
 /// The points the registration is driven by. Detected cheek and forehead points are the face
 /// region's borders (paper steps 7–8: where the cheek turns away, the hairline), not the
 /// generic face's fixed cheek and forehead vertices; matching them stretches the generic face
@@ -37,7 +33,7 @@ pub fn registration_points(
 ) -> Vec<(crate::FeaturePoint, glam::DVec3)> {
     landmarks
         .iter()
-        .filter(|(p, _)| !detected || !BORDER_POINTS.contains(p))
+        .filter(|(p, _)| !detected || !crate::FeaturePoint::BORDER.contains(p))
         .collect()
 }
 

@@ -3,8 +3,8 @@
 use super::super::EditorApp;
 use super::super::document::{Command, SPIKE_MM};
 use super::figures_grid;
-use crate::cli::Overlay;
 use crate::denoise::DenoiseMethod;
+use crate::view_options::Overlay;
 use eframe::egui;
 
 pub fn denoise_ui(app: &mut EditorApp, ui: &mut egui::Ui) {

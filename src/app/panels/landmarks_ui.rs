@@ -16,7 +16,7 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             .clicked()
         {
             app.commands.push(Command::DetectLandmarks);
-            app.view.overlay = crate::cli::Overlay::ShapeIndex;
+            app.view.overlay = crate::view_options::Overlay::ShapeIndex;
         }
         if ui.button("Load JSON…").clicked()
             && let Some(path) = rfd::FileDialog::new()

@@ -23,7 +23,7 @@ pub struct PanelsOpen {
 }
 
 impl PanelsOpen {
-    pub fn for_args(args: &crate::cli::ViewArgs) -> Self {
+    pub fn for_args(args: &crate::view_options::ViewArgs) -> Self {
         let fem = args.fem || args.expression.is_some() || args.fit.is_some();
         let registration = args.register && !fem;
         let landmarks = (args.detect || args.landmarks.is_some()) && !registration && !fem;

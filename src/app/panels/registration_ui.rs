@@ -3,7 +3,7 @@
 use super::super::EditorApp;
 use super::super::document::Command;
 use super::figures_grid;
-use crate::cli::Overlay;
+use crate::view_options::Overlay;
 use eframe::egui;
 
 pub fn registration_ui(app: &mut EditorApp, ui: &mut egui::Ui) {

@@ -1,8 +1,8 @@
 //! View panel: colouring, shading, overlays, camera presets.
 
 use super::super::EditorApp;
-use crate::cli::Overlay;
 use crate::render::OrbitCamera;
+use crate::view_options::Overlay;
 use eframe::egui;
 
 pub fn view_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
