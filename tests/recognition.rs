@@ -371,3 +371,34 @@ fn a_suspect_scan_is_posed_by_the_generic_face_fit() {
     .unwrap();
     assert!(reasons.is_empty(), "{reasons:?}");
 }
+
+/// The ground truth beside a generated scan is read only by `--pose truth`: the nose tip of the
+/// other pose sources is detected, whatever the JSON says (here a tip moved 50 mm).
+#[test]
+fn ground_truth_is_read_only_by_the_truth_pose() {
+    let dir = common::synth_dataset(SUBJECTS, SEED, false);
+    let tmp = tempfile::tempdir().unwrap();
+    let scan = tmp.path().join("subj000_frontal1.wrl");
+    std::fs::copy(dir.join("subj000_frontal1.wrl"), &scan).unwrap();
+    let json_path = dir.join("subj000_frontal1.json");
+    let mut truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+    let real = truth["landmarks"]["nose_tip"]["xyz_mm"].clone();
+    truth["landmarks"]["nose_tip"]["xyz_mm"][0] = (real[0].as_f64().unwrap() + 50.0).into();
+    std::fs::write(
+        tmp.path().join("subj000_frontal1.json"),
+        serde_json::to_string(&truth).unwrap(),
+    )
+    .unwrap();
+    let tip = protocol::nose_tip(&scan).unwrap();
+    let off = (tip.x - real[0].as_f64().unwrap()).abs();
+    assert!(
+        off < 5.0,
+        "nose tip {tip} is {off} mm from the scan's real tip"
+    );
+    let moved = protocol::truth_nose_tip(&scan).unwrap();
+    assert!(
+        (moved.x - tip.x).abs() > 40.0,
+        "--pose truth reads the JSON"
+    );
+}

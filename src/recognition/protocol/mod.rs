@@ -85,8 +85,8 @@ pub enum PoseSource {
     Identity,
     /// Landmark-free: the rotation about the nose tip that aligns the upper face to the mean
     /// gallery range image ([`super::pose`]; the mean is built in two rounds, first from
-    /// unaligned then from aligned gallery scans). Nose tip from the ground truth when there is
-    /// one, else detected.
+    /// unaligned then from aligned gallery scans). Nose tip detected (the ground truth is read
+    /// only by `truth`).
     Icp,
 }
 

@@ -27,15 +27,10 @@ pub fn truth_nose_tip(scan_path: &Path) -> Result<DVec3> {
     Ok(DVec3::new(xyz[0], xyz[1], xyz[2]))
 }
 
-/// The nose tip of a scan, mm, scan frame: the ground truth beside it when there is one,
-/// else the automatic detection on the denoised mesh.
+/// The nose tip of a scan, mm, scan frame: detected on the denoised mesh (the ground truth
+/// beside a generated scan is read only by [`PoseSource::Truth`]).
 pub fn nose_tip(scan_path: &Path) -> Result<DVec3> {
-    if truth_json(scan_path).is_some() {
-        truth_nose_tip(scan_path)
-    } else {
-        // The mesh is read only when there is no ground truth to take the tip from.
-        Ok(detect_landmarks(&io::read_mesh(scan_path)?)?.get(crate::FeaturePoint::NoseTip))
-    }
+    Ok(detect_landmarks(&io::read_mesh(scan_path)?)?.get(crate::FeaturePoint::NoseTip))
 }
 
 /// The ground-truth frontalising rotation (`face_from_scan`): the transpose of `pose.rotation`
