@@ -70,6 +70,23 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
             "detected in {:.0} ms; face region {} vertices, roll {:.1}° (symmetry {symmetry})",
             d.millis, d.report.face_vertices, d.report.roll_deg
         ));
+        if let Some(l) = &d.report.localisation {
+            use crate::landmarks::localise::{facing_and_up, yaw_pitch_roll_deg};
+            let (yaw, pitch, roll) = yaw_pitch_roll_deg(l.face_from_scan);
+            let (facing, up) = facing_and_up(l.face_from_scan);
+            ui.small(format!(
+                "face found: likeness {:.2}, facing {facing}, up {up}; yaw {yaw:.0}°, pitch \
+                 {pitch:.0}°, roll {roll:.0}°",
+                l.face_likeness
+            ));
+        }
+        // Reasons not to trust the points: the user corrects them here before going on.
+        for s in &d.report.suspect {
+            ui.colored_label(
+                egui::Color32::from_rgb(255, 80, 80),
+                format!("suspect: {s}"),
+            );
+        }
         for w in &d.report.warnings {
             ui.colored_label(egui::Color32::from_rgb(255, 150, 40), w);
         }
