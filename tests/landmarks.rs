@@ -541,3 +541,39 @@ fn clutter_below_the_chin_or_over_the_forehead_does_not_move_the_points() {
         assert!(found.suspect.is_empty(), "{what}: {:?}", found.suspect);
     }
 }
+
+#[test]
+fn three_failed_plausibility_checks_make_a_detection_suspect() {
+    let (mesh, _, _) = generated_scan("subj000_frontal1");
+    let mut report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
+    assert!(report.suspect.is_empty(), "{:?}", report.suspect);
+    // From a detection whose checks all pass, fail one, two, then three Table 2 checks.
+    for d in &mut report.distances {
+        d.in_range = true;
+    }
+    for l in &mut report.level {
+        l.in_range = true;
+    }
+    let params = landmarks::localise::LocaliseParams::default();
+    let fail = |report: &mut landmarks::LandmarkReport, k: usize| {
+        report.distances[k].in_range = false;
+        landmarks::suspect_reasons(None, report, &params)
+    };
+    assert!(
+        fail(&mut report, 0).is_empty(),
+        "one failed check is an unusual face"
+    );
+    assert!(
+        fail(&mut report, 1).is_empty(),
+        "two failed checks are an unusual face"
+    );
+    let reasons = fail(&mut report, 2);
+    assert_eq!(reasons.len(), 1, "{reasons:?}");
+    for d in &report.distances[..3] {
+        assert!(
+            reasons[0].contains(&d.name),
+            "{} not named: {reasons:?}",
+            d.name
+        );
+    }
+}

@@ -28,12 +28,79 @@ pub(super) struct Detector<'a> {
     pub(super) guessed: Vec<FeaturePoint>,
 }
 
+/// The warning of a point placed at its Table 2 average position.
+pub(super) fn fallback_warning(p: FeaturePoint) -> String {
+    format!("{p}: its surface feature was not found; placed at the Table 2 average position")
+}
+
+/// What the nine steps found, before the Table 2 and level checks.
+#[derive(Debug, Clone)]
+pub(super) struct StepPoints {
+    pub(super) landmarks: Landmarks,
+    /// The mesh vertex each point was snapped to.
+    pub(super) vertex: [usize; FeaturePoint::COUNT],
+    /// The face frame's roll (radians; `LandmarkReport::roll_deg`).
+    pub(super) roll: f64,
+    /// The symmetry line's roll (radians), where found.
+    pub(super) symmetry_roll: Option<f64>,
+    pub(super) face_vertices: usize,
+    /// The steps' warnings (fallbacks, replaced regions).
+    pub(super) warnings: Vec<String>,
+    pub(super) guessed: Vec<FeaturePoint>,
+}
+
+impl StepPoints {
+    /// The report: the points with the Table 2 plausibility and level checks in the face frame
+    /// (origin at the nose tip, turned by the roll), one warning per failed check.
+    pub(super) fn into_report(self) -> LandmarkReport {
+        let frame = Frame::new(self.landmarks.get(FeaturePoint::NoseTip), self.roll);
+        let mut warnings = self.warnings;
+        let distances = plausibility(&self.landmarks, &frame);
+        for d in &distances {
+            if !d.in_range {
+                warnings.push(format!(
+                    "{}: {} {:?} distance {:.1} mm outside Table 2 range [{}, {}] mm",
+                    d.point, d.name, d.stat.direction, d.measured_mm, d.stat.min_mm, d.stat.max_mm
+                ));
+            }
+        }
+        let level = if self.symmetry_roll.is_some() {
+            level_checks(&self.landmarks, &frame)
+        } else {
+            Vec::new()
+        };
+        for l in level.iter().filter(|l| !l.in_range) {
+            warnings.push(format!(
+                "{}/{}: heights differ by {:.1} mm across the face's symmetry line (more than \
+                 {LEVEL_MAX_MM} mm); one of them is probably off",
+                l.left,
+                l.right,
+                l.difference_mm.abs()
+            ));
+        }
+        LandmarkReport {
+            landmarks: self.landmarks,
+            vertex: self.vertex,
+            distances,
+            level,
+            warnings,
+            roll_deg: self.roll.to_degrees(),
+            symmetry_roll_deg: self.symmetry_roll.map(f64::to_degrees),
+            face_vertices: self.face_vertices,
+            guessed: self.guessed,
+            spread_mm: None,
+            localisation: None,
+            suspect: Vec::new(),
+        }
+    }
+}
+
 impl Detector<'_> {
     pub(super) fn p(&self, v: usize) -> DVec3 {
         self.mesh.positions_mm[v]
     }
 
-    pub(super) fn run(mut self) -> Result<LandmarkReport> {
+    pub(super) fn run(mut self) -> Result<StepPoints> {
         use FeaturePoint::*;
         let n = self.mesh.vertex_count();
         // Step 1.
@@ -103,41 +170,14 @@ impl Detector<'_> {
             lm.set(p, self.p(v));
         }
         lm.set(NoseTip, nose_tip);
-        let distances = plausibility(&lm, &frame);
-        for d in &distances {
-            if !d.in_range {
-                self.warnings.push(format!(
-                    "{}: {} {:?} distance {:.1} mm outside Table 2 range [{}, {}] mm",
-                    d.point, d.name, d.stat.direction, d.measured_mm, d.stat.min_mm, d.stat.max_mm
-                ));
-            }
-        }
-        let level = if symmetry_roll.is_some() {
-            level_checks(&lm, &frame)
-        } else {
-            Vec::new()
-        };
-        for l in level.iter().filter(|l| !l.in_range) {
-            self.warnings.push(format!(
-                "{}/{}: heights differ by {:.1} mm across the face's symmetry line (more than \
-                 {LEVEL_MAX_MM} mm); one of them is probably off",
-                l.left,
-                l.right,
-                l.difference_mm.abs()
-            ));
-        }
-        Ok(LandmarkReport {
+        Ok(StepPoints {
             landmarks: lm,
             vertex,
-            distances,
-            level,
-            warnings: self.warnings,
-            roll_deg: roll.to_degrees(),
-            symmetry_roll_deg: symmetry_roll.map(f64::to_degrees),
+            roll,
+            symmetry_roll,
             face_vertices,
+            warnings: self.warnings,
             guessed: self.guessed,
-            localisation: None,
-            suspect: Vec::new(),
         })
     }
 
@@ -248,9 +288,7 @@ impl Detector<'_> {
     ) -> usize {
         let p = if side < 0.0 { p.mirror() } else { p };
         self.guessed.push(p);
-        self.warnings.push(format!(
-            "{p}: its surface feature was not found; placed at the Table 2 average position"
-        ));
+        self.warnings.push(fallback_warning(p));
         let target = frame.origin.truncate() + frame.u * at.x + frame.v * at.y;
         (0..self.mesh.vertex_count())
             .min_by(|&a, &b| {

@@ -45,8 +45,13 @@ pub struct ScanResult {
     pub success: bool,
     /// Detection error message, if detection failed.
     pub failure: Option<String>,
+    /// Why the detection flagged itself as suspect (`LandmarkReport::suspect`); empty if not.
+    pub suspect: Vec<String>,
     /// Plausibility warnings of the detection.
     pub warnings: Vec<String>,
+    /// Point name → the spread of the consensus views, mm (`LandmarkReport::spread_mm`; empty
+    /// without localisation).
+    pub spread_mm: BTreeMap<String, f64>,
     /// Roll of the detection's face frame, degrees (0 where detection failed); with the
     /// detected nose tip it gives the frame in which errors split into lateral and vertical.
     pub roll_deg: f64,
@@ -84,6 +89,13 @@ pub struct GroupSummary {
     pub detected: usize,
     /// Fraction of scans with every scored point within 10 mm.
     pub success_rate: f64,
+    /// Scans that failed (not detected, or a point over 10 mm) ...
+    pub failed: usize,
+    /// ... and of those, the ones the detector flagged (an error or suspect): failures a user
+    /// is told about.
+    pub failed_flagged: usize,
+    /// Successful scans flagged suspect anyway (false alarms).
+    pub succeeded_flagged: usize,
     pub points: BTreeMap<String, PointStats>,
     pub mean_millis: f64,
 }
@@ -152,6 +164,15 @@ fn summarize<'a>(scans: impl Iterator<Item = &'a ScanResult>) -> GroupSummary {
         scans: scans.len(),
         detected: scans.iter().filter(|s| s.failure.is_none()).count(),
         success_rate: scans.iter().filter(|s| s.success).count() as f64 / total,
+        failed: scans.iter().filter(|s| !s.success).count(),
+        failed_flagged: scans
+            .iter()
+            .filter(|s| !s.success && (s.failure.is_some() || !s.suspect.is_empty()))
+            .count(),
+        succeeded_flagged: scans
+            .iter()
+            .filter(|s| s.success && !s.suspect.is_empty())
+            .count(),
         points,
         mean_millis: scans.iter().map(|s| s.millis).sum::<f64>() / total,
     }
@@ -185,7 +206,9 @@ pub fn evaluate_scan(
         detected: BTreeMap::new(),
         success: false,
         failure: None,
+        suspect: Vec::new(),
         warnings: Vec::new(),
+        spread_mm: BTreeMap::new(),
         roll_deg: 0.0,
         millis,
     };
@@ -207,6 +230,13 @@ pub fn evaluate_scan(
             }
             out.success = out.errors_mm.values().all(|&e| e <= SUCCESS_RADIUS_MM);
             out.warnings = report.warnings;
+            out.suspect = report.suspect;
+            if let Some(spread) = report.spread_mm {
+                out.spread_mm = FeaturePoint::ALL
+                    .iter()
+                    .map(|p| (p.name().to_string(), spread[p.index()]))
+                    .collect();
+            }
             out.roll_deg = report.roll_deg;
             out.detected = report.landmarks.to_map();
         }
