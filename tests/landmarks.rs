@@ -577,3 +577,30 @@ fn three_failed_plausibility_checks_make_a_detection_suspect() {
         );
     }
 }
+
+#[test]
+fn implausibility_counts_failed_checks_guesses_and_unstable_anatomical_points() {
+    use FeaturePoint::*;
+    let (mesh, _, _) = generated_scan("subj001_frontal1");
+    let mut report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
+    for d in &mut report.distances {
+        d.in_range = true;
+    }
+    for l in &mut report.level {
+        l.in_range = true;
+    }
+    report.guessed.clear();
+    let mut spread = [0.0; FeaturePoint::COUNT];
+    report.spread_mm = Some(spread);
+    assert_eq!(landmarks::implausibility(&report), 0);
+    report.distances[0].in_range = false;
+    report.level[0].in_range = false;
+    assert_eq!(landmarks::implausibility(&report), 2);
+    // Region borders (forehead, cheeks) count neither guessed nor unstable; the chin does.
+    report.guessed = vec![Forehead, Chin];
+    spread[CheekLeft.index()] = 50.0;
+    spread[OuterEyeLeft.index()] = landmarks::UNSTABLE_SPREAD_MM + 1.0;
+    spread[OuterEyeRight.index()] = landmarks::UNSTABLE_SPREAD_MM;
+    report.spread_mm = Some(spread);
+    assert_eq!(landmarks::implausibility(&report), 4);
+}

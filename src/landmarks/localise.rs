@@ -30,7 +30,9 @@
 //! 5. **Decision**: the three best distinct candidates (a fit started in the scanner frame
 //!    ranked [`SCANNER_FRAME_PRIOR`] higher: most scans are frontal, and a wrong fit can score
 //!    as high as the right one on an unusual face) are refitted on the surface with a dense
-//!    template (every 3rd vertex) and scored again; the best wins.
+//!    template (every 3rd vertex) and scored again; the best wins ([`localise`]). The feature
+//!    steps take every refitted finalist within `PLAUSIBILITY_TIE` of the best
+//!    ([`localise_finalists`]) and keep the anatomically most plausible one (`super::detect`).
 //!
 //! The winning fit gives the face frame: the rotation that turns the scan so that the face looks
 //! along +z with its forehead up ([`Localisation::face_from_scan`]). Differences from the
@@ -196,10 +198,19 @@ fn stages(params: &LocaliseParams) -> Vec<Vec<(DMat3, AxisFrame)>> {
     out
 }
 
-/// Finds the face in `mesh` (any frame, mm). Fails only when nothing in any orientation
-/// protrudes like a nose; a scan whose best candidate is not face-like gets that candidate with
-/// its low face-likeness (the caller flags it).
+/// Finds the face in `mesh` (any frame, mm): the best of [`localise_finalists`].
 pub fn localise(mesh: &Mesh, params: &LocaliseParams) -> Result<Localisation> {
+    Ok(localise_finalists(mesh, params)?[0].0)
+}
+
+/// The finalists of the search, refitted on the surface, best first, each with its rank
+/// (face-likeness plus [`SCANNER_FRAME_PRIOR`] for a fit started in the scanner frame). Fails
+/// only when nothing in any orientation protrudes like a nose; a scan whose best candidate is
+/// not face-like gets that candidate with its low face-likeness (the caller flags it).
+pub fn localise_finalists(
+    mesh: &Mesh,
+    params: &LocaliseParams,
+) -> Result<Vec<(Localisation, f64)>> {
     let index = SurfaceIndex::new(mesh, 2.0);
     let vertices = VertexGrid::new(&mesh.positions_mm, VERTEX_GRID_CELL_MM);
     let coarse = template(COARSE_STEP, true);
@@ -270,40 +281,36 @@ pub fn localise(mesh: &Mesh, params: &LocaliseParams) -> Result<Localisation> {
     }
     let fine = template(FINE_STEP, true);
     let fine_all = template(FINE_STEP, false);
-    let (best, rms_mm) = finalists
+    let mut refits: Vec<(Localisation, f64)> = finalists
         .into_iter()
         .map(|f| {
             let pose = icp(&index, &fine, f.pose, &FINE_SCHEDULE).unwrap_or(f.pose);
-            let (likeness, rms) = score(&index, &fine_all, pose, params.inlier_mm);
+            let (likeness, rms_mm) = score(&index, &fine_all, pose, params.inlier_mm);
             let refit = Fit {
                 likeness,
                 pose,
                 ..f
             };
-            (refit, rms)
+            let found = Localisation {
+                face_from_scan: pose.rot.transpose(),
+                nose_tip_in_scan: pose.shift,
+                scale: pose.scale,
+                face_likeness: likeness,
+                rms_mm,
+                start: f.start,
+                candidates_fitted: fitted,
+            };
+            (found, ranked(&refit))
         })
-        .max_by(|a, b| ranked(&a.0).total_cmp(&ranked(&b.0)))
-        .ok_or_else(|| {
-            Error::algorithm(
-                "landmarks: face localisation",
-                "nothing protrudes like a nose in any orientation of the scan",
-            )
-        })?;
-    let Fit {
-        likeness: face_likeness,
-        pose,
-        start,
-        ..
-    } = best;
-    Ok(Localisation {
-        face_from_scan: pose.rot.transpose(),
-        nose_tip_in_scan: pose.shift,
-        scale: pose.scale,
-        face_likeness,
-        rms_mm,
-        start,
-        candidates_fitted: fitted,
-    })
+        .collect();
+    if refits.is_empty() {
+        return Err(Error::algorithm(
+            "landmarks: face localisation",
+            "nothing protrudes like a nose in any orientation of the scan",
+        ));
+    }
+    refits.sort_by(|a, b| b.1.total_cmp(&a.1));
+    Ok(refits)
 }
 
 /// Protrusion peaks of the mesh seen through `face_from_scan`, in the scan frame.
