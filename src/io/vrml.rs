@@ -45,7 +45,7 @@
 //! (`Box`, `Sphere`, `ElevationGrid`, …; ignored).
 //!
 //! Speed: one pass over the bytes, no regexes, no per-token allocation. Measured with
-//! `tests/io_timing.rs` (release): the nine cara1 scans (0.63–0.86 MB) take 25–36 ms of CPU on
+//! `tests/io/io_timing.rs` (release): the nine cara1 scans (0.63–0.86 MB) take 25–36 ms of CPU on
 //! the shared 2-core development machine under load ≈ 12, where merely splitting
 //! cara1_frontal1.wrl into words and parsing its numbers takes 17 ms; i.e. the reader costs
 //! ~1.5–2× that floor, which on an unloaded core is a few milliseconds.

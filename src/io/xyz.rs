@@ -33,7 +33,7 @@
 //! cloud in arbitrary order is detected (short "rows" that do not step down in y) and refused
 //! with an error that says so, rather than triangulated badly.
 //!
-//! Measured on all 20 clouds (`tests/io_timing.rs`, release build; "used" = points in at least
+//! Measured on all 20 clouds (`tests/io/io_timing.rs`, release build; "used" = points in at least
 //! one triangle; CPU time of parse + triangulation + normals on a shared 2-core machine under
 //! load ≈ 12, where merely splitting cara1_frontal1.wrl into words and parsing its numbers
 //! takes 17 ms — so read the times relative to that, an idle core is several times faster):
@@ -62,7 +62,7 @@
 //! | cara9_frontal2.txt | 14195 | 164 | 27119 | 13982 (98.5%) | 1.65 | 27.7 |
 //!
 //! Every cloud: 96.2–99.5 % of points used, 1.84–1.94 triangles per point, mean normal
-//! towards +z (checked by `tests/io_xyz.rs`).
+//! towards +z (checked by `tests/io/io_xyz.rs`).
 
 use crate::io::ReadLimits;
 use crate::mesh::Polygons;

@@ -2,7 +2,7 @@
 //! The editor's edit logic without a window: commands applied to the document, worker jobs run
 //! directly, results received — as the app does once per frame.
 
-mod common;
+use crate::common;
 
 use facesynth::app::document::{Command, Document};
 use facesynth::app::worker::WorkerState;

@@ -1,6 +1,6 @@
 //! Registration of a generic face to synthetic scans with ground truth (and real GavabDB).
 
-mod common;
+use crate::common;
 
 use facesynth::feature_points::FeaturePoint;
 use facesynth::generic_face::GenericFace;
@@ -350,7 +350,7 @@ fn registration_with_a_subset_of_points_and_without_scale() {
 }
 
 /// The full evaluation (≥ 20 subjects, all five scans, clean and noisy). Run with
-/// `cargo test --release --no-default-features --test registration -- --ignored --nocapture`.
+/// `cargo test --release --no-default-features --test algorithms -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn evaluation_table() {
@@ -438,7 +438,7 @@ fn debug_one() {
 
 /// The same table with the points the detector finds (the pipeline: denoise → detect →
 /// register on the ten anatomical points), scored against the clean twins. On demand:
-/// `cargo test --release --test registration -- --ignored --nocapture detected_landmarks`.
+/// `cargo test --release --test algorithms -- --ignored --nocapture detected_landmarks`.
 #[test]
 #[ignore]
 fn evaluation_table_with_detected_landmarks() {

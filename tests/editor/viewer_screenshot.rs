@@ -2,7 +2,7 @@
 //! The editor in a real window: Xvfb + Mesa's software Vulkan (lavapipe), one frame rendered
 //! after loading a real GavabDB scan, saved as PNG and checked for a drawn face.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};

@@ -35,7 +35,7 @@ fn every_shader_validates() {
 
 #[test]
 fn shader_entry_points_exist() {
-    let source = include_str!("../shaders/mesh.wgsl");
+    let source = include_str!("../../shaders/mesh.wgsl");
     let module = naga::front::wgsl::parse_str(source).unwrap();
     let names: Vec<&str> = module
         .entry_points

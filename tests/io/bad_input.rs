@@ -4,10 +4,10 @@
 //! with the documented outcome. Pipeline steps that cannot do their job say so with a typed
 //! error ([`facesynth::error::Stage`]) that augment's `failures.json` carries.
 //!
-//! `tests/io_bad_input.rs` covers the same ground on the readers alone, more deeply (mutated
+//! `tests/io/io_bad_input.rs` covers the same ground on the readers alone, more deeply (mutated
 //! real files, limits per reader); this file is the end-to-end table.
 
-mod common;
+use crate::common;
 
 use facesynth::error::Stage;
 use facesynth::io::{self, ReadLimits, read_mesh};
@@ -615,7 +615,7 @@ fn pipeline_steps_report_what_they_could_not_do_as_typed_errors() {
 }
 
 /// An ill-posed FEM model is a typed error with the FEM stage (the variants themselves are
-/// checked in tests/fem_face.rs).
+/// checked in tests/algorithms/fem_face.rs).
 #[test]
 fn fem_singular_and_invalid_materials_are_typed_fem_errors() {
     use facesynth::fem::{FaceModel, FemParams};

@@ -1,6 +1,6 @@
 //! The command line end to end: JSON on stdout, one-line errors and exit code 1 on bad input.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -1,5 +1,5 @@
 //! Parse-time measurements quoted in the module docs of `io::vrml` and `io::xyz`.
-//! Run: `cargo test --release --no-default-features --test io_timing -- --ignored --nocapture`.
+//! Run: `cargo test --release --no-default-features --test io -- --ignored --nocapture`.
 
 use facesynth::io::{ReadLimits, vrml, xyz};
 use std::path::Path;

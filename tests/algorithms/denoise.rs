@@ -1,7 +1,7 @@
 //! Denoising: behaviour on analytic meshes, and scores against the synthetic benchmark's
 //! clean twins.
 
-mod common;
+use crate::common;
 
 use common::grid;
 

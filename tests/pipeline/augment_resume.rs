@@ -3,7 +3,7 @@
 //! finished subjects are skipped) and completes every subject, with no temporary file left or
 //! taken for a mesh.
 
-mod common;
+use crate::common;
 
 use facesynth::pipeline::DONE_MARKER;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Learning an expression: fitting activations recovers a synthesized expression, and on a
 //! synthetic smile scan the fitted face is much closer than the neutral one.
 
-mod common;
+use crate::common;
 
 use facesynth::fem::expressions::ExpressionSet;
 use facesynth::fem::fit::{FitParams, fit_expression};

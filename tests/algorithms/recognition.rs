@@ -1,6 +1,6 @@
 //! Recognition on a small generated synthetic GavabDB-like set (paper section 4 protocol).
 
-mod common;
+use crate::common;
 
 use facesynth::io;
 use facesynth::recognition::{Method, Metric, PoseSource, ProtocolParams, evaluate, protocol};

@@ -2,7 +2,7 @@
 //! a little looser than measured), robustness to pose, real GavabDB scans, and typed errors on
 //! meshes without a face.
 
-mod common;
+use crate::common;
 
 use facesynth::feature_points::FeaturePoint;
 use facesynth::ground_truth::ScanTruth;

@@ -1,7 +1,7 @@
 //! Gallery augmentation (paper section 3) on generated scans: outputs, resume after a killed
 //! run, failure list; and the expression transfer onto the scan on an analytic case.
 
-mod common;
+use crate::common;
 
 use facesynth::Mesh;
 use facesynth::pipeline::{self, AugmentParams, DONE_MARKER};

@@ -1,6 +1,6 @@
 //! `facesynth synthesize` and `export-fem` end to end.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 
