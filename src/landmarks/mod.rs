@@ -14,10 +14,12 @@
 //! step 1 kept to an ellipse about the located nose and step 2 to 30 mm of it; the points are
 //! turned back, so they are in the input's frame. Where localisation's finalists rank within
 //! [`PLAUSIBILITY_TIE`] of each other, each gets the steps and the anatomically most plausible
-//! result wins ([`implausibility`]). The steps run in that view and in four views
-//! tilted by ±5° (`consensus.rs`); each point is the medoid of the five, and their spread per
-//! point ([`LandmarkReport::spread_mm`]) names the unstable ones. [`LandmarkReport::localisation`] gives the
-//! orientation found; [`LandmarkReport::suspect`] the reasons not to trust the points
+//! result wins ([`implausibility`]). The steps run in that view and in four views tilted by
+//! ±5° (`consensus.rs`): a point that the untilted view puts more than
+//! [`CONSENSUS_KEEP_MM`] from the medoid of the five is replaced by it, and the views' spread
+//! per point ([`LandmarkReport::spread_mm`]) names the unstable ones.
+//! [`LandmarkReport::localisation`] gives the orientation found; [`LandmarkReport::suspect`]
+//! the reasons not to trust the points
 //! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point, three or
 //! more failed Table 2 and level checks).
 //!

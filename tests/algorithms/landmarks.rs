@@ -43,9 +43,13 @@ fn generated_scans_meet_the_measured_accuracy() {
     let n = &s.neutral;
     assert_eq!(n.scans, 8);
     assert_eq!(n.detected, 8, "{:#?}", report.scans);
-    // 8 scans: measured 7/8 (6/8 before the fissure step of step 3; the misses were single
-    // eye corners at 10.2–10.7 mm); the ≥ 97 % figure is measured on 90 subjects (module docs).
-    assert!(n.success_rate >= 0.75, "neutral success {}", n.success_rate);
+    // 8 scans: measured 8/8, worst point 8.8 mm; the bounds allow one near miss (20-subject seeds:
+    // 39–40 of 40, docs/measurements.md).
+    assert!(
+        n.success_rate >= 0.875,
+        "neutral success {}",
+        n.success_rate
+    );
     for (name, p) in &n.points {
         assert!(
             p.max_mm <= 12.0,
@@ -56,14 +60,12 @@ fn generated_scans_meet_the_measured_accuracy() {
     let mean = |name: &str| n.points[name].mean_mm;
     assert!(mean("nose_tip") <= 3.0, "nose tip {}", mean("nose_tip"));
     for p in ["inner_eye_left", "inner_eye_right"] {
-        // Measured 3.02 / 3.47 on this set (4.32 / 3.55 before the fissure step); 2.35 / 2.32
-        // over 90 subjects (module docs).
+        // Measured 3.36 / 3.55 on this set; 2.4–2.7 on 20-subject seeds.
         assert!(mean(p) <= 4.0, "{p} {}", mean(p));
     }
     for p in ["outer_eye_left", "outer_eye_right"] {
-        // Measured 2.35 / 1.32 on this set (3.61 / 3.30 before the fissure step of step 4);
-        // 1.50 / 1.50 over 120 subjects (module docs).
-        assert!(mean(p) <= 3.5, "{p} {}", mean(p));
+        // Measured 2.42 / 2.00 on this set.
+        assert!(mean(p) <= 3.0, "{p} {}", mean(p));
     }
     let eyes = [
         "inner_eye_left",
@@ -86,7 +88,7 @@ fn generated_scans_meet_the_measured_accuracy() {
         assert!(up > 0.5, "{p}: mean vertical offset {up} mm");
     }
     let eye_mean = eyes.iter().map(|p| mean(p)).sum::<f64>() / 4.0;
-    assert!(eye_mean <= 4.0, "eye corners {eye_mean}"); // measured 2.54 (3.35 before step 4's fissure step)
+    assert!(eye_mean <= 3.3, "eye corners {eye_mean}"); // measured 2.83
     for (p, st) in &n.points {
         let bound = 6.0;
         assert!(st.mean_mm <= bound, "{p} mean {} mm", st.mean_mm);
@@ -95,8 +97,9 @@ fn generated_scans_meet_the_measured_accuracy() {
     assert_eq!(e.scans, 12);
     assert!(e.detected >= 11);
     assert!(e.points["nose_tip"].mean_mm <= 3.5);
+    // Measured 11 of 12.
     assert!(
-        e.success_rate >= 0.6,
+        e.success_rate >= 0.83,
         "expression success {}",
         e.success_rate
     );

@@ -106,7 +106,8 @@ fn two_neutral_gallery_uses_lda_and_augmented_folder_is_read() {
     let r = &eval.report;
     assert_eq!(r.method, Method::Fisherfaces);
     assert_eq!(r.probes, 3 * SUBJECTS);
-    assert!(r.rank1 > 1.0 / SUBJECTS as f64, "rank-1 {}", r.rank1);
+    // Measured 0.67 (12 of 18 probes); chance is 1/6.
+    assert!(r.rank1 >= 0.55, "rank-1 {}", r.rank1);
     check_cmc(&r.cmc, SUBJECTS);
 }
 

@@ -477,7 +477,8 @@ fn the_whole_pipeline_on_a_real_scan_denoise_detect_register_fem() {
     );
     apply_with(&mut worker, &mut doc, Command::Register);
     let reg = doc.registration.as_ref().expect("registered");
-    assert!(reg.result.rigid_rms_mm < 20.0);
+    // Measured 6.7 mm (the 13 points after Horn's fit, before the warp makes them coincide).
+    assert!(reg.result.rigid_rms_mm < 8.0, "{}", reg.result.rigid_rms_mm);
     apply_with(&mut worker, &mut doc, Command::BuildFem);
     let fem = doc.fem.as_ref().expect("FEM on the registered face");
     assert_ne!(

@@ -385,3 +385,27 @@ fn a_suspect_gallery_scan_is_listed_not_augmented() {
     assert_eq!(listed[0]["stage"], "landmarks");
     assert!(!out.path().join("cara1_frontal1").join(DONE_MARKER).exists());
 }
+
+/// Paper section 4's claim on a small generated gallery (6 subjects, seed 31; one neutral scan
+/// each in the gallery, the other neutral and three expressions per subject as probes): the 18
+/// synthetic expressions per gallery scan raise rank-1 by a real margin. Measured: 18 → 24 of
+/// 24 probes (0.75 → 1.0).
+#[test]
+fn augmentation_raises_rank1_on_a_small_generated_gallery() {
+    use facesynth::recognition::{ProtocolParams, evaluate};
+    let data = common::synth_dataset(6, 31, false);
+    let out = tempfile::tempdir().unwrap();
+    let (done, failed) =
+        pipeline::augment(&data, out.path(), &AugmentParams::default(), &|_, _, _| {}).unwrap();
+    assert_eq!((done.len(), failed.len()), (6, 0), "{failed:?}");
+    let params = ProtocolParams::default();
+    let with = evaluate(&data, Some(out.path()), &params).unwrap().report;
+    let without = evaluate(&data, None, &params).unwrap().report;
+    assert_eq!(with.probes, without.probes);
+    assert!(
+        with.rank1 >= without.rank1 + 0.15,
+        "rank-1 {} with the synthetic expressions, {} without",
+        with.rank1,
+        without.rank1
+    );
+}

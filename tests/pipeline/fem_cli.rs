@@ -192,7 +192,12 @@ fn fit_expression_writes_a_loadable_preset() {
         "learned_smile",
     ]);
     println!("{v}");
-    assert!(v["rms_after_mm"].as_f64().unwrap() < v["rms_before_mm"].as_f64().unwrap());
+    // Measured 1.42 -> 0.66 mm: the fit explains over half the expression's displacement.
+    let (before, after) = (
+        v["rms_before_mm"].as_f64().unwrap(),
+        v["rms_after_mm"].as_f64().unwrap(),
+    );
+    assert!(after < 0.6 * before, "{before} -> {after}");
     assert!(v["closest_preset"].is_string());
     // 18 muscles, the 8 soft-tissue loads (4 pairs) and the jaw's four actuators.
     let fitted = v["activations"].as_object().unwrap();
@@ -271,7 +276,8 @@ fn fit_expression_learns_an_open_jaw_and_repairs_folds_like_augment() {
         v["rms_before_mm"].as_f64().unwrap(),
         v["rms_after_mm"].as_f64().unwrap(),
     );
-    assert!(after < 0.8 * before, "{before} -> {after}");
+    // Measured 2.90 -> 1.07 mm.
+    assert!(after < 0.5 * before, "{before} -> {after}");
     // The laugh opens the mouth (ground truth: jawOpen 0.25-0.55 of the ICT model's range).
     let jaw = v["activations"]["jaw_open"].as_f64().unwrap();
     assert!(jaw > 2.0, "jaw_open {jaw} degrees");
