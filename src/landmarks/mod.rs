@@ -127,8 +127,8 @@
 //! 40 neutral scans have all 9 points within 10 mm (seeds 40, 77, 93, 101). Real scans in
 //! `../shared/data`: 27 of 34 agree within 12 mm with an independent detector
 //! (`scripts/real_landmarks.sh`; the two profiles are flagged). Denoise + detection, release
-//! build on one core, median: 82 + 311 ms (cara1_sonrisa). Figures, how to reproduce them,
-//! and what was tried: `docs/measurements.md`.
+//! build on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1).
+//! Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
 
 pub mod eval;
 pub mod localise;

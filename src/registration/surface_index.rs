@@ -6,8 +6,10 @@ use super::*;
 /// grid of triangles by bounding box.
 #[derive(Debug, Clone)]
 pub struct SurfaceIndex {
-    positions: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
+    /// Each triangle's corners and bounding box (min, max), stored by triangle so that a query
+    /// reads one record per candidate.
+    corners: Vec<[DVec3; 3]>,
+    boxes: Vec<[DVec3; 2]>,
     min: DVec3,
     /// The grid's far corner (`min + dims · cell`): it covers every triangle.
     max: DVec3,
@@ -78,9 +80,17 @@ impl SurfaceIndex {
                 }
             }
         }
+        let corners: Vec<[DVec3; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|v| positions[v as usize]))
+            .collect();
+        let boxes = corners
+            .iter()
+            .map(|&[a, b, c]| [a.min(b).min(c), a.max(b).max(c)])
+            .collect();
         SurfaceIndex {
-            positions,
-            triangles,
+            corners,
+            boxes,
             min: lo,
             max: lo + DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64) * cell,
             cell,
@@ -97,7 +107,7 @@ impl SurfaceIndex {
 
     /// The closest surface point within `max_mm`: (distance, point).
     pub fn closest(&self, p: DVec3, max_mm: f64) -> Option<(f64, DVec3)> {
-        if self.triangles.is_empty() {
+        if self.corners.is_empty() {
             return None;
         }
         // Nothing within reach of the grid: answer at once instead of widening the search to
@@ -123,19 +133,17 @@ impl SurfaceIndex {
                             for &t in
                                 &self.items[self.offsets[c] as usize..self.offsets[c + 1] as usize]
                             {
-                                let [a, b, cc] =
-                                    self.triangles[t as usize].map(|v| self.positions[v as usize]);
                                 // A triangle whose bounding box is no nearer than the best
                                 // so far cannot beat it (and a triangle spanning several
                                 // cells comes up once per cell).
                                 if let Some((bd, _)) = best {
-                                    let gap = (a.min(b).min(cc) - p)
-                                        .max(p - a.max(b).max(cc))
-                                        .max(DVec3::ZERO);
+                                    let [lo, hi] = self.boxes[t as usize];
+                                    let gap = (lo - p).max(p - hi).max(DVec3::ZERO);
                                     if gap.length_squared() >= bd {
                                         continue;
                                     }
                                 }
+                                let [a, b, cc] = self.corners[t as usize];
                                 let q = closest_point_on_triangle(p, a, b, cc);
                                 let d2 = q.distance_squared(p);
                                 if best.is_none_or(|(bd, _)| d2 < bd) {
