@@ -27,9 +27,9 @@ pub const CONSENSUS_TILT_DEG: f64 = 5.0;
 /// estimated view (clutter such as a torso adds normals) does not swap one near-equal point
 /// for another; only an outlier is replaced.
 pub const CONSENSUS_KEEP_MM: f64 = 4.0;
-/// A point the views put further apart than this, mm, is named in the warnings as unstable:
-/// the benchmark's success radius (on two generated seeds, 20 of 48 points with a spread over
-/// 10 mm were more than 10 mm off, against 19 of 1,848 below it).
+/// An anatomical point the views put further apart than this, mm, is named in the warnings as
+/// unstable: the benchmark's success radius (on two generated seeds, 15 of 48 points with a
+/// spread over 10 mm were more than 10 mm off, against 27 of 1,936 below it).
 pub const UNSTABLE_SPREAD_MM: f64 = 10.0;
 
 /// The steps' consensus on a scan turned by `face_from_scan` (the steps frame), with face
@@ -153,9 +153,11 @@ fn merge(runs: Vec<StepPoints>) -> (StepPoints, [f64; FeaturePoint::COUNT]) {
             ));
         }
     }
+    // Region borders are defined against the line of sight (where the surface turns away from
+    // it), so they move with the view by design: their spread is reported, not warned.
     for p in FeaturePoint::ALL {
         let s = spread[p.index()];
-        if s > UNSTABLE_SPREAD_MM {
+        if s > UNSTABLE_SPREAD_MM && !FeaturePoint::BORDER.contains(&p) {
             out.warnings.push(format!(
                 "{p}: unstable: views tilted {CONSENSUS_TILT_DEG}° put it up to {s:.0} mm apart"
             ));
@@ -233,6 +235,12 @@ mod tests {
                 .warnings
                 .iter()
                 .any(|w| w.starts_with("chin: unstable"))
+        );
+        assert!(
+            !merged
+                .warnings
+                .iter()
+                .any(|w| w.starts_with("forehead: unstable"))
         );
         assert_eq!(merged.vertex[NoseTip.index()], 0);
         assert_eq!(merged.vertex[OuterEyeLeft.index()], 7);

@@ -108,13 +108,14 @@
 //!    height) is its most lateral vertex (the end of the lip line).
 //! 7. **Cheek borders** (`cheeks.rs`). Paper: `|∂/∂z| ≤ 0.4` in a box per side between mouth
 //!    and eyes, outside the outer eye corners; centroid of the biggest region (snapped to the
-//!    surface). Here: at the nose tip's height, where the cheek beside the outer eye corner
-//!    turns away from the scanner (`|∂/∂z| ≤ 0.7`), so the two cheeks are level and lie where
-//!    the generic face has its cheek points.
+//!    surface). Here: at the nose tip's height, walking out from the outer eye corner in
+//!    1.5 mm steps, the first step where most of the cheek turns away from the scanner
+//!    (`|∂/∂z| ≤ 0.7`), so the two cheeks are level and lie where the generic face has its
+//!    cheek points.
 //! 8. **Forehead border** (`forehead.rs`). Paper: regions above the eyes with
 //!    `0.19 < |∂/∂x| < 0.25`, upper border where `|∂/∂z| > 0.6` ends. Here: walk up the
-//!    midline strip of the face from the eyes through vertices with `|∂/∂z| > 0.6` until the
-//!    first gap (hairline, hole).
+//!    midline strip of the face in 2 mm steps through smooth skin with `|∂/∂z| > 0.6` until
+//!    more than 4 mm of it is not (hairline, the scan's edge; a wrinkle does not stop it).
 //! 9. **Chin border** (`chin.rs`). The paper's biggest `S > 0.85`, `∇xy < 0.3` region is the
 //!    front of the chin, ~10 mm above the jaw-contour chin point (iBUG 8). Here: walk down a
 //!    midline strip from the mouth along mesh edges through vertices whose mesh normal faces

@@ -403,9 +403,9 @@ fn cheek_borders_are_level_and_where_the_generic_face_has_its_cheeks() {
 
 /// Real scans turned by known rotations (the head rolled, turned and pitched; the file's axes
 /// y-up facing −z, z-up, rolled 90°) give the same points, turned back, within 2 mm: face
-/// localisation finds the face's frame whatever the data's. The ten anatomical points; the
-/// cheek borders and the forehead (region borders, which can jump: measured 64 mm for one
-/// cheek of cara1_abajo rolled −20°) are printed, not asserted.
+/// localisation finds the face's frame whatever the data's. The ten anatomical points within
+/// 2 mm; the cheek borders and the forehead (region borders, found where a slope crosses a
+/// threshold, which a 0.1–0.5° difference in the located frame moves) within 5 mm.
 #[test]
 fn real_scans_give_the_same_points_in_any_orientation() {
     use std::f64::consts::FRAC_PI_2;
@@ -445,7 +445,14 @@ fn real_scans_give_the_same_points_in_any_orientation() {
                     + pivot;
                 let err = (back - level.landmarks.get(p)).length();
                 println!("{name} {what}: {p} {err:.2} mm");
-                if !FeaturePoint::BORDER.contains(&p) && err > 2.0 && err > worst.0 {
+                // Anatomical points within 2 mm (measured 0.00); the region borders within
+                // 5 mm (measured: pol_2's forehead 4.6 mm at pitch ±25°, all else ≤ 1 mm).
+                let bound = if FeaturePoint::BORDER.contains(&p) {
+                    5.0
+                } else {
+                    2.0
+                };
+                if err > bound && err > worst.0 {
                     worst = (err, p);
                 }
             }
