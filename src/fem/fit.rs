@@ -23,8 +23,8 @@
 //! each placed on the map the previous one left: the malar cheek (`cheek_raiser`), the cheek
 //! beside the lip corner (`buccal_bulge`), the deepening nasolabial fold and the lower lid
 //! (`infraorbital_bulge`). The neutral rescan fits hardly better with them (72 → 68 %), so they
-//! explain expression, not noise; the 6 synthetic smiles of synth_gavab seed 8 (subjects 0–5),
-//! not used to place them, go from 85 % (muscles + jaw) to 66 % (cheek_raiser) to 57 %. What
+//! explain expression, not noise: on synthetic smiles they were not placed on, the residual
+//! falls from 85 % to 57 % of the RMS before the fit (docs/measurements.md). What
 //! is left on the cara1 smile (13 % of the vertices off by more than 2 mm): +2–4 mm beside
 //! the nose wings, along the lower lids and at the face's outer rim, −1–2 mm lateral to the
 //! mouth on the subject's right.

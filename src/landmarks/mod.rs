@@ -125,7 +125,8 @@
 //! # Accuracy and speed
 //!
 //! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 39–40 of
-//! 40 neutral scans have all 9 points within 10 mm (seeds 40, 77, 93, 101). Real scans in
+//! 40 neutral scans have all 9 points within 10 mm (four seeds, one made after the last change).
+//! Real scans in
 //! `../shared/data`: 27 of 34 agree within 12 mm with an independent detector
 //! (`scripts/real_landmarks.sh`; the two profiles are flagged). Denoise + detection, release
 //! build on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1).

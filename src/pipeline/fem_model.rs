@@ -97,8 +97,8 @@ pub const SURFACE_REPAIRS: usize = 16;
 /// smoothed locally around the offending element (its corners' 2-ring, [`smooth_patch`]) and
 /// everything is tried again, up to [`SURFACE_REPAIRS`] times. Why: the elements that still
 /// invert sit on a surface quad that the registration has all but collapsed (a projection
-/// across a hole's rim or a scan border; measured on seed 8: 8 of 61 gallery scans, minimum
-/// Jacobians of −1e−2 … −1e−4 mm³ even at 0.35 of the thickness), which no thickness fixes.
+/// across a hole's rim or a scan border, seen on about one gallery scan in eight: see
+/// docs/measurements.md), which no thickness fixes.
 /// Returns the model (its `surface` is the repaired one), the factor used (1 = the requested
 /// thicknesses) and the number of surface repairs.
 pub fn fem_model(

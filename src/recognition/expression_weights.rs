@@ -22,9 +22,9 @@
 //! forehead keep 0.6–1), whatever its direction.
 //!
 //! The weights exist only with synthetic expressions; a gallery of neutral scans alone is
-//! scored unweighted, as the paper does. Measured (61 subjects, 244 probes, auto pose, cosine;
-//! `synth_gavab.py --seed 8` / `--seed 9`): rank-1 with the 18 FEM expressions 84.0 → 91.8 %
-//! and 86.1 → 91.8 %; see `docs/measurements.md`, "Recognition protocol", for the full table and the choice of `s`.
+//! scored unweighted, as the paper does. Measured gains in rank-1, the full table and the
+//! choice of `s`: `docs/measurements.md`, "Recognition protocol" and "Figures moved from the
+//! code's comments".
 
 use super::protocol::Sample;
 use super::range_image::{RangeImageParams, neighbourhood_median};

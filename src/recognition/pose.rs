@@ -11,8 +11,8 @@
 //! point-to-plane distances (the plane from the reference's depth gradient).
 //! The reference is typically the mean gallery range image ([`mean_image`]).
 //!
-//! **Status: experimental.** It recovers an analytic test surface's pose to < 0.5°, but on the
-//! noisy 61-subject synthetic set (seed 7) the converged pose of one subject's scans is not
+//! **Status: experimental.** It recovers an analytic test surface's pose to < 0.5°, but on a
+//! noisy 61-subject synthetic set the converged pose of one subject's scans is not
 //! consistent (before the pairing region was restricted to 35 × 55 mm: mean 2.8° between
 //! frontal1 and frontal2, outliers > 20°; a subject's face is not the mean face, and holes,
 //! hair and expressions change which points pair up), so rank-1 with it is 58 % against 70 %
@@ -127,8 +127,9 @@ pub fn align_to_reference(
 /// Levenberg–Marquardt steps as [`align_to_reference`], with a translation `t` of the face
 /// frame added to the unknowns; the nose tip becomes `n − Rᵀ t`). Used after the landmark
 /// pose ([`PoseSource`](super::PoseSource)`::Auto`) to take out the few degrees and
-/// millimetres that feature-point noise leaves (measured: median 2.2° and 1.3 mm between a
-/// subject's two neutral scans, seed 8).
+/// millimetres that feature-point noise leaves (a few degrees and about a millimetre between a
+/// subject's two neutral scans: docs/measurements.md, "Figures moved from the code's
+/// comments").
 pub fn refine_pose(
     mesh: &Mesh,
     start: ScanPose,

@@ -122,9 +122,9 @@ impl Default for ProtocolParams {
     fn default() -> Self {
         ProtocolParams {
             range: RangeImageParams::default(),
-            // A within-class floor of 3× the mean S_w eigenvalue: chosen on seed 7 (61
-            // synthetic subjects), confirmed on seed 8 (augmented rank-1 78.7 % vs 43.9 % with
-            // the paper's plain LDA); see `FisherParams::within_class_regularisation`.
+            // A within-class floor of 3× the mean S_w eigenvalue: plain LDA overfits a handful
+            // of samples per class (figures: docs/measurements.md, "Recognition protocol");
+            // see `FisherParams::within_class_regularisation`.
             fisher: FisherParams {
                 within_class_regularisation: 3.0,
                 ..FisherParams::default()
