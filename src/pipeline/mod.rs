@@ -48,15 +48,23 @@ pub struct PreparedScan {
     pub registration: RegistrationResult,
 }
 
-/// Reads a landmark file (JSON: name → [x, y, z] mm, all 13 names).
+/// Reads a landmark file: what `facesynth landmarks --json` writes (the points under
+/// `"landmarks"`, beside its checks) or a flat map, name → [x, y, z] mm; all 13 names.
 pub fn read_landmarks(path: &Path) -> Result<Landmarks> {
     parse_landmarks(&io::read_text_file(path)?, path)
 }
 
-/// Parses a landmark file's text (`path` only names it in errors).
+/// Parses a landmark file's text, either shape of [`read_landmarks`] (`path` only names it in
+/// errors).
 pub fn parse_landmarks(text: &str, path: &Path) -> Result<Landmarks> {
-    serde_json::from_str(text)
-        .map_err(|e| Error::syntax(path, e.line(), format!("not a landmark file: {e}")))
+    let value: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| Error::syntax(path, e.line(), format!("not a landmark file: {e}")))?;
+    let points = match value.get("landmarks") {
+        Some(inner) if inner.is_object() => inner.clone(),
+        _ => value,
+    };
+    serde_json::from_value(points)
+        .map_err(|e| Error::invalid(path, format!("not a landmark file: {e}")))
 }
 
 /// The scan's feature points: read from `given`, else detected on the (denoised) mesh.

@@ -259,3 +259,48 @@ fn facing_and_up_give_the_scan_axes() {
         "{err}"
     );
 }
+
+/// One landmark file format: what `landmarks --json` writes is read back by `--landmarks`
+/// (the points under `"landmarks"`), as is a flat name → [x, y, z] map, and both give the same
+/// registration. A file without all 13 points is a one-line error naming it.
+#[test]
+fn landmarks_json_feeds_register_in_either_shape() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = common::gavab("cara1_frontal1.wrl");
+    let scan = scan.to_str().unwrap();
+    let report = dir.path().join("report.json");
+    json_of(&facesynth(&[
+        "landmarks",
+        scan,
+        "--json",
+        report.to_str().unwrap(),
+    ]));
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let flat = dir.path().join("flat.json");
+    std::fs::write(&flat, written["landmarks"].to_string()).unwrap();
+    let register = |file: &std::path::Path| {
+        let mut v = json_of(&facesynth(&[
+            "register",
+            scan,
+            "--landmarks",
+            file.to_str().unwrap(),
+        ]));
+        assert_eq!(v["landmarks_detected"], false, "{}", file.display());
+        v.as_object_mut().unwrap().remove("millis");
+        v
+    };
+    let (a, b) = (register(&report), register(&flat));
+    assert_eq!(a, b);
+    assert!(a["rigid_rms_mm"].as_f64().unwrap() < 15.0, "{a}"); // measured 12.6 mm (13 points)
+    let partial = dir.path().join("partial.json");
+    std::fs::write(&partial, r#"{"landmarks": {"nose_tip": [0, 0, 0]}}"#).unwrap();
+    let out = facesynth(&["register", scan, "--landmarks", partial.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("partial.json") && err.contains("inner_eye_left"),
+        "{err}"
+    );
+}
