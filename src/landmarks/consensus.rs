@@ -32,11 +32,13 @@ pub const CONSENSUS_KEEP_MM: f64 = 4.0;
 /// spread over 10 mm were more than 10 mm off, against 27 of 1,936 below it).
 pub const UNSTABLE_SPREAD_MM: f64 = 10.0;
 
-/// The steps' consensus on a scan turned by `face_from_scan` (the steps frame), with face
+/// The steps' consensus on a scan turned by `face_from_scan` (the steps frame; `turned` is the
+/// working copy), with face
 /// localisation's nose tip `prior_nose` (scan frame). The points are in the steps frame; the
 /// spread per point is in mm. Errors only where the untilted view's steps fail; a tilted view
 /// whose steps fail is left out.
 pub(super) fn consensus(
+    turned: &mut Turned,
     mesh: &Mesh,
     topology: &Topology,
     desc: &SurfaceDescriptors,
@@ -55,7 +57,7 @@ pub(super) fn consensus(
     let mut runs = Vec::with_capacity(tilts.len());
     for (k, tilt) in tilts.iter().enumerate() {
         let view = *tilt * face_from_scan;
-        match steps_in_view(mesh, topology, desc, params, view, prior_nose) {
+        match steps_in_view(turned, mesh, topology, desc, params, view, prior_nose) {
             Ok(mut found) => {
                 // Back into the steps frame.
                 for p in FeaturePoint::ALL {
@@ -72,8 +74,36 @@ pub(super) fn consensus(
     Ok(merge(runs))
 }
 
+/// One copy of the scan and its descriptors, turned into a view by overwriting positions and
+/// normals from the originals (nothing else changes with the view), reused for every view.
+pub(super) struct Turned {
+    mesh: Mesh,
+    desc: SurfaceDescriptors,
+}
+
+impl Turned {
+    pub(super) fn new(mesh: &Mesh, desc: &SurfaceDescriptors) -> Self {
+        Turned {
+            mesh: mesh.clone(),
+            desc: desc.clone(),
+        }
+    }
+
+    fn turn(&mut self, mesh: &Mesh, desc: &SurfaceDescriptors, view: DMat3) {
+        let turn = |to: &mut [DVec3], from: &[DVec3]| {
+            for (t, &f) in to.iter_mut().zip(from) {
+                *t = view * f;
+            }
+        };
+        turn(&mut self.mesh.positions_mm, &mesh.positions_mm);
+        turn(&mut self.mesh.normals, &mesh.normals);
+        turn(&mut self.desc.normal, &desc.normal);
+    }
+}
+
 /// The steps on the scan turned by `view` (positions and normals), points in that frame.
 fn steps_in_view(
+    turned: &mut Turned,
     mesh: &Mesh,
     topology: &Topology,
     desc: &SurfaceDescriptors,
@@ -81,21 +111,11 @@ fn steps_in_view(
     view: DMat3,
     prior_nose: DVec3,
 ) -> Result<StepPoints> {
-    let mut turned = mesh.clone();
-    for p in turned.positions_mm.iter_mut() {
-        *p = view * *p;
-    }
-    for n in turned.normals.iter_mut() {
-        *n = view * *n;
-    }
-    let mut turned_desc = desc.clone();
-    for n in turned_desc.normal.iter_mut() {
-        *n = view * *n;
-    }
+    turned.turn(mesh, desc, view);
     Detector {
-        mesh: &turned,
+        mesh: &turned.mesh,
         topology,
-        desc: &turned_desc,
+        desc: &turned.desc,
         params,
         warnings: Vec::new(),
         prior_nose: Some(view * prior_nose),

@@ -30,9 +30,9 @@
 //! 5. **Decision**: the three best distinct candidates (a fit started in the scanner frame
 //!    ranked [`SCANNER_FRAME_PRIOR`] higher: most scans are frontal, and a wrong fit can score
 //!    as high as the right one on an unusual face) are refitted on the surface with a dense
-//!    template (every 3rd vertex) and scored again; the best wins ([`localise`]). The feature
-//!    steps take every refitted finalist within `PLAUSIBILITY_TIE` of the best
-//!    ([`localise_finalists`]) and keep the anatomically most plausible one (`super::detect`).
+//!    template (every 3rd vertex) and scored again, best first ([`localise_finalists`]); the
+//!    first is the face, unless another within `PLAUSIBILITY_TIE` of it gives the feature steps
+//!    an anatomically more plausible result (`super::detect`).
 //!
 //! The winning fit gives the face frame: the rotation that turns the scan so that the face looks
 //! along +z with its forehead up ([`Localisation::face_from_scan`]). Differences from the
@@ -196,11 +196,6 @@ fn stages(params: &LocaliseParams) -> Vec<Vec<(DMat3, AxisFrame)>> {
         );
     }
     out
-}
-
-/// Finds the face in `mesh` (any frame, mm): the best of [`localise_finalists`].
-pub fn localise(mesh: &Mesh, params: &LocaliseParams) -> Result<Localisation> {
-    Ok(localise_finalists(mesh, params)?[0].0)
 }
 
 /// The finalists of the search, refitted on the surface, best first, each with its rank
@@ -431,7 +426,7 @@ mod tests {
             for p in &mut mesh.positions_mm {
                 *p = scan_from_face * *p + offset;
             }
-            let found = localise(&mesh, &LocaliseParams::default()).unwrap();
+            let found = localise_finalists(&mesh, &LocaliseParams::default()).unwrap()[0].0;
             assert!(found.face_likeness > 0.95, "{found:?}");
             // The template's own surface: the fit must land on the exact pose.
             assert!(

@@ -285,6 +285,16 @@ pub struct LandmarkReport {
 }
 
 impl LandmarkReport {
+    /// The names of the Table 2 and level checks that fail (`nose_tip-chin`, `inner_eye`, …).
+    pub fn failed_checks(&self) -> Vec<&str> {
+        self.distances
+            .iter()
+            .filter(|d| !d.in_range)
+            .map(|d| d.name.as_str())
+            .chain(self.level.iter().filter(|l| !l.in_range).map(|l| l.name))
+            .collect()
+    }
+
     /// The CLI's JSON: `{"landmarks": {name: [x,y,z]}, "distances_mm": {...}, "warnings": [...]}`
     /// (the CLI adds `millis`).
     pub fn to_json(&self) -> serde_json::Value {
@@ -404,12 +414,19 @@ pub fn detect_with(
     // best) each get the steps; the one whose points pass the most anatomical checks wins.
     let finalists = localise::localise_finalists(mesh, &localise_params)?;
     let best_rank = finalists[0].1;
+    let scan = Scan {
+        mesh,
+        topology,
+        desc,
+        normal_sum: mesh.normals.iter().copied().sum(),
+    };
+    let mut turned = consensus::Turned::new(mesh, desc);
     let mut best: Option<(usize, LandmarkReport)> = None;
     for (k, (found, rank)) in finalists.into_iter().enumerate() {
         if rank < best_rank - PLAUSIBILITY_TIE {
             continue;
         }
-        let report = match steps_for(mesh, topology, desc, params, &localise_params, found) {
+        let report = match steps_for(&scan, &mut turned, params, &localise_params, found) {
             Ok(r) => r,
             Err(e) if k == 0 => return Err(e),
             Err(_) => continue,
@@ -435,8 +452,7 @@ pub const PLAUSIBILITY_TIE: f64 = 0.1;
 /// put more than [`UNSTABLE_SPREAD_MM`] apart.
 pub fn implausibility(report: &LandmarkReport) -> usize {
     let anatomical = |p: &FeaturePoint| !FeaturePoint::BORDER.contains(p);
-    let failed = report.distances.iter().filter(|d| !d.in_range).count()
-        + report.level.iter().filter(|l| !l.in_range).count();
+    let failed = report.failed_checks().len();
     let guessed = report.guessed.iter().filter(|p| anatomical(p)).count();
     let unstable = report.spread_mm.map_or(0, |s| {
         FeaturePoint::ALL
@@ -447,12 +463,20 @@ pub fn implausibility(report: &LandmarkReport) -> usize {
     failed + guessed + unstable
 }
 
+/// The scan as the steps see it, with the sum of its vertex normals (the line of sight,
+/// [`steps_frame`]), computed once for all finalists.
+struct Scan<'a> {
+    mesh: &'a Mesh,
+    topology: &'a Topology,
+    desc: &'a SurfaceDescriptors,
+    normal_sum: glam::DVec3,
+}
+
 /// The nine steps (their consensus of views) on the face `found` by localisation, the points
-/// in the scan's frame.
+/// in the scan's frame; `turned` is the working copy of the scan the views are turned into.
 fn steps_for(
-    mesh: &Mesh,
-    topology: &Topology,
-    desc: &SurfaceDescriptors,
+    scan: &Scan,
+    turned: &mut consensus::Turned,
     params: &LandmarkParams,
     localise_params: &localise::LocaliseParams,
     found: localise::Localisation,
@@ -461,11 +485,12 @@ fn steps_for(
     // whose y is the located face's up (any roll and any axis convention taken out). Yaw and
     // pitch of the head against the line of sight stay: the steps read depth, front-facing
     // normals and depth jumps, which mean what the scanner saw.
-    let face_from_scan = steps_frame(mesh, found.face_from_scan);
+    let face_from_scan = steps_frame(scan.normal_sum, found.face_from_scan);
     let (points, spread) = consensus::consensus(
-        mesh,
-        topology,
-        desc,
+        turned,
+        scan.mesh,
+        scan.topology,
+        scan.desc,
         params,
         face_from_scan,
         found.nose_tip_in_scan,
@@ -478,22 +503,21 @@ fn steps_for(
             .landmarks
             .set(p, scan_from_face * report.landmarks.get(p));
     }
-    let yaw_deg = yaw_from_line_of_sight(mesh, found.face_from_scan);
+    let yaw_deg = yaw_from_line_of_sight(scan.normal_sum, found.face_from_scan);
     report.suspect = suspect_reasons(Some((&found, yaw_deg)), &report, localise_params);
     report.localisation = Some(found);
     Ok(report)
 }
 
 /// The frame the nine steps run in (rotation from the scan): z along the line of sight, estimated
-/// as the mean vertex normal (a single-view range scan's surface faces its scanner, its normals
-/// spread about the line of sight), turned to the side the located face looks to; y the located
-/// face's up, made perpendicular to it. Both follow any rotation of the data, so the steps see
-/// the same thing however the file's axes lie.
-fn steps_frame(mesh: &Mesh, located: glam::DMat3) -> glam::DMat3 {
+/// as the mean vertex normal (`normal_sum`: a single-view range scan's surface faces its
+/// scanner, its normals spread about the line of sight), turned to the side the located face
+/// looks to; y the located face's up, made perpendicular to it. Both follow any rotation of the
+/// data, so the steps see the same thing however the file's axes lie.
+fn steps_frame(normal_sum: glam::DVec3, located: glam::DMat3) -> glam::DMat3 {
     let face_z = located.transpose().z_axis;
     let face_y = located.transpose().y_axis;
-    let mean = mesh.normals.iter().copied().sum::<glam::DVec3>();
-    let mut z = mean.normalize_or_zero();
+    let mut z = normal_sum.normalize_or_zero();
     if z.dot(face_z) < 0.0 {
         z = -z;
     }
@@ -508,12 +532,13 @@ fn steps_frame(mesh: &Mesh, located: glam::DMat3) -> glam::DMat3 {
 }
 
 /// The head's turn (degrees) against the line of sight, whatever the file's axes: the angle,
-/// about the located face's up axis, from the scan's mean vertex normal (a single-view scan
-/// faces its scanner) to the located face's direction. 0 for a closed mesh (no line of sight).
-fn yaw_from_line_of_sight(mesh: &Mesh, located: glam::DMat3) -> f64 {
+/// about the located face's up axis, from the scan's mean vertex normal (`normal_sum`; a
+/// single-view scan faces its scanner) to the located face's direction. 0 for a closed mesh (no
+/// line of sight).
+fn yaw_from_line_of_sight(normal_sum: glam::DVec3, located: glam::DMat3) -> f64 {
     let face = located.transpose();
     let (up, facing) = (face.y_axis, face.z_axis);
-    let mean = mesh.normals.iter().copied().sum::<glam::DVec3>();
+    let mean = normal_sum;
     let mut sight = (mean - up * mean.dot(up)).normalize_or_zero();
     if sight == glam::DVec3::ZERO {
         return 0.0;

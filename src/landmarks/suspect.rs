@@ -58,13 +58,7 @@ pub fn suspect_reasons(
             anatomical.join(", ")
         ));
     }
-    let failed: Vec<&str> = report
-        .distances
-        .iter()
-        .filter(|d| !d.in_range)
-        .map(|d| d.name.as_str())
-        .chain(report.level.iter().filter(|l| !l.in_range).map(|l| l.name))
-        .collect();
+    let failed = report.failed_checks();
     if failed.len() >= SUSPECT_FAILED_CHECKS {
         out.push(format!(
             "{} Table 2 and level checks fail ({}): the face frame is probably wrong",

@@ -22,7 +22,7 @@ pub struct SurfaceIndex {
 impl SurfaceIndex {
     pub fn new(mesh: &Mesh, cell_mm: f64) -> Self {
         let triangles = mesh.triangles();
-        let positions = mesh.positions_mm.clone();
+        let positions = &mesh.positions_mm;
         let (lo, hi) = mesh.bbox_mm().unwrap_or((DVec3::ZERO, DVec3::ZERO));
         // Cells grow until the grid holds at most a few per triangle, and at most 1024 along
         // any axis: a scan with one vertex far away would otherwise ask for a billion cells.

@@ -61,6 +61,24 @@ pub fn synth_dataset(subjects: usize, seed: u64, clean: bool) -> PathBuf {
     dir
 }
 
+/// Runs the `facesynth` binary with `args`.
+pub fn facesynth(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_facesynth"))
+        .args(args)
+        .output()
+        .expect("run facesynth")
+}
+
+/// The JSON object a successful run printed on stdout.
+pub fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "facesynth failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
 /// Runs the `facesynth` binary with `args`, which must fail with one line on stderr; returns
 /// that line.
 pub fn cli_error(args: &[&std::ffi::OsStr]) -> String {

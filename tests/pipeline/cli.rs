@@ -1,24 +1,6 @@
 //! The command line end to end: JSON on stdout, one-line errors and exit code 1 on bad input.
 
-use crate::common;
-
-use std::process::Command;
-
-fn facesynth(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_facesynth"))
-        .args(args)
-        .output()
-        .expect("run facesynth")
-}
-
-fn json_of(out: &std::process::Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "facesynth failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
-}
+use crate::common::{self, facesynth, json_of};
 
 #[test]
 fn info_reports_gavabdb_counts_in_millimetres() {

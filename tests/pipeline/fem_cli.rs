@@ -2,19 +2,8 @@
 
 use crate::common;
 
-use std::process::Command;
-
 fn run(args: &[&str]) -> serde_json::Value {
-    let out = Command::new(env!("CARGO_BIN_EXE_facesynth"))
-        .args(args)
-        .output()
-        .expect("run facesynth");
-    assert!(
-        out.status.success(),
-        "facesynth failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+    common::json_of(&common::facesynth(args))
 }
 
 #[test]
@@ -57,16 +46,13 @@ fn synthesize_generic_writes_meshes_and_report() {
     assert_eq!(neutral.faces, happy.faces);
     assert_ne!(neutral.positions_mm, happy.positions_mm);
     // Unknown names are one-line errors.
-    let bad = Command::new(env!("CARGO_BIN_EXE_facesynth"))
-        .args([
-            "synthesize",
-            "--out",
-            out.to_str().unwrap(),
-            "--expressions",
-            "nope",
-        ])
-        .output()
-        .unwrap();
+    let bad = common::facesynth(&[
+        "synthesize",
+        "--out",
+        out.to_str().unwrap(),
+        "--expressions",
+        "nope",
+    ]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown expression"));
 }
