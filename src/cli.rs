@@ -14,6 +14,7 @@ pub(crate) use landmarks::min_median;
 pub use landmarks::{bench_landmarks, landmarks};
 pub use recognition::{augment, evaluate};
 
+use crate::pipeline::correction_for;
 use crate::{denoise, generic_face, io};
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -170,9 +171,14 @@ pub enum Command {
     Register {
         /// Scan mesh (.wrl .vrml .obj .ply .xyz .txt).
         scan: PathBuf,
-        /// The scan's 13 feature points as JSON (name → [x, y, z] mm); detected when omitted.
+        /// The scan's 13 feature points (a landmark file); when omitted, the correction file
+        /// beside the scan, else detected.
         #[arg(long)]
         landmarks: Option<PathBuf>,
+        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
+        /// one there replaces detection unless --landmarks is given.
+        #[arg(long, value_name = "DIR")]
+        landmarks_dir: Option<PathBuf>,
         /// Write the registered generic face (.obj or .ply).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -185,9 +191,14 @@ pub enum Command {
     Synthesize {
         /// Neutral scan; without it the generic face is used.
         scan: Option<PathBuf>,
-        /// The scan's 13 feature points as JSON (name → [x, y, z] mm); detected when omitted.
+        /// The scan's 13 feature points (a landmark file); when omitted, the correction file
+        /// beside the scan, else detected.
         #[arg(long)]
         landmarks: Option<PathBuf>,
+        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
+        /// one there replaces detection unless --landmarks is given.
+        #[arg(long, value_name = "DIR")]
+        landmarks_dir: Option<PathBuf>,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -208,9 +219,14 @@ pub enum Command {
     ExportFem {
         /// Neutral scan; without it the generic face is used.
         scan: Option<PathBuf>,
-        /// The scan's 13 feature points as JSON; detected when omitted.
+        /// The scan's 13 feature points (a landmark file); when omitted, the correction file
+        /// beside the scan, else detected.
         #[arg(long)]
         landmarks: Option<PathBuf>,
+        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
+        /// one there replaces detection unless --landmarks is given.
+        #[arg(long, value_name = "DIR")]
+        landmarks_dir: Option<PathBuf>,
         /// Preset name (e.g. happiness).
         #[arg(long)]
         expression: String,
@@ -226,12 +242,18 @@ pub enum Command {
     FitExpression {
         neutral_scan: PathBuf,
         expression_scan: PathBuf,
-        /// The neutral scan's 13 feature points as JSON; detected when omitted.
+        /// The neutral scan's 13 feature points (a landmark file); when omitted, the
+        /// correction file beside the scan, else detected.
         #[arg(long)]
         landmarks: Option<PathBuf>,
-        /// The expression scan's feature points as JSON (optional: start of the rigid alignment).
+        /// The expression scan's feature points (start of the rigid alignment); when omitted,
+        /// the correction file beside it, else detected.
         #[arg(long)]
         expression_landmarks: Option<PathBuf>,
+        /// Folder of correction files `<scan stem>.landmarks.json` for both scans (default:
+        /// beside each scan).
+        #[arg(long, value_name = "DIR")]
+        landmarks_dir: Option<PathBuf>,
         /// Output preset file (.ron), loadable with `synthesize --presets`.
         #[arg(long)]
         out: PathBuf,
@@ -289,6 +311,15 @@ pub enum Command {
         /// Skip writing the FEM face's own surfaces (`face/*.obj`); recognition does not read them.
         #[arg(long)]
         no_face_meshes: bool,
+        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside each
+        /// gallery scan); a scan with one is augmented from its points, not detected ones.
+        #[arg(long, value_name = "DIR")]
+        landmarks_dir: Option<PathBuf>,
+        /// Only the gallery scans whose index in the sorted gallery is ≡ K (mod N), e.g. one
+        /// task of a cluster job array; the shards together write what one run writes
+        /// (failures in `failures.K-of-N.json`).
+        #[arg(long, value_name = "K/N")]
+        shard: Option<crate::pipeline::Shard>,
     },
     /// Print timings as JSON.
     Bench {
@@ -400,6 +431,10 @@ pub struct EvaluateArgs {
     /// Score every range-image sample alike, as the paper does (no expression weights).
     #[arg(long)]
     pub no_expression_weights: bool,
+    /// Folder of correction files `<scan stem>.landmarks.json` (default: beside each scan);
+    /// a gallery or probe scan with one is posed by its points, not detected ones.
+    #[arg(long, value_name = "DIR")]
+    pub landmarks_dir: Option<PathBuf>,
 }
 
 /// What `facesynth bench` measures.
@@ -530,17 +565,19 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::Register {
             scan,
             landmarks,
+            landmarks_dir,
             out,
             report,
         }) => print_json(&register(
             &scan,
-            landmarks.as_deref(),
+            correction_for(&scan, landmarks.as_deref(), landmarks_dir.as_deref()).as_deref(),
             out.as_deref(),
             report.as_deref(),
         )?),
         Some(Command::Synthesize {
             scan,
             landmarks,
+            landmarks_dir,
             out,
             expressions,
             presets,
@@ -548,7 +585,9 @@ pub fn run(cli: Cli) -> Result<()> {
             png,
         }) => print_json(&fem::synthesize(
             scan.as_deref(),
-            landmarks.as_deref(),
+            scan.as_deref()
+                .and_then(|s| correction_for(s, landmarks.as_deref(), landmarks_dir.as_deref()))
+                .as_deref(),
             &out,
             &expressions,
             presets.as_deref(),
@@ -558,12 +597,15 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::ExportFem {
             scan,
             landmarks,
+            landmarks_dir,
             expression,
             vtk,
             presets,
         }) => print_json(&fem::export_fem(
             scan.as_deref(),
-            landmarks.as_deref(),
+            scan.as_deref()
+                .and_then(|s| correction_for(s, landmarks.as_deref(), landmarks_dir.as_deref()))
+                .as_deref(),
             &expression,
             &vtk,
             presets.as_deref(),
@@ -573,6 +615,7 @@ pub fn run(cli: Cli) -> Result<()> {
             expression_scan,
             landmarks,
             expression_landmarks,
+            landmarks_dir,
             out,
             name,
             muscles,
@@ -580,8 +623,18 @@ pub fn run(cli: Cli) -> Result<()> {
         }) => print_json(&fem::fit_expression(
             &neutral_scan,
             &expression_scan,
-            landmarks.as_deref(),
-            expression_landmarks.as_deref(),
+            correction_for(
+                &neutral_scan,
+                landmarks.as_deref(),
+                landmarks_dir.as_deref(),
+            )
+            .as_deref(),
+            correction_for(
+                &expression_scan,
+                expression_landmarks.as_deref(),
+                landmarks_dir.as_deref(),
+            )
+            .as_deref(),
             &fem::FitOutputs {
                 preset: &out,
                 residual_ply: residual_ply.as_deref(),
@@ -601,8 +654,12 @@ pub fn run(cli: Cli) -> Result<()> {
             laugh_base,
             muscles,
             no_face_meshes,
+            landmarks_dir,
+            shard,
         }) => {
             let params = crate::pipeline::AugmentParams {
+                landmarks_dir,
+                shard,
                 gallery_suffix: suffix,
                 expressions,
                 presets: fem::expression_set(presets.as_deref())?,
@@ -716,6 +773,8 @@ pub fn register(
     }
     let mut value = result.report_json();
     value["landmarks_detected"] = json!(prepared.detection.is_some());
+    value["landmarks_source"] = json!(prepared.landmark_source());
+    value["landmarks_file"] = json!(prepared.given.as_ref().map(|(p, _)| p));
     if let Some(d) = &prepared.detection {
         value["landmark_warnings"] = json!(d.warnings);
     }

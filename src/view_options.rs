@@ -18,9 +18,15 @@ pub struct ViewArgs {
     /// Window height in logical pixels.
     #[arg(long, default_value_t = 800)]
     pub height: u32,
-    /// The scan's feature points (JSON: name → [x, y, z] mm), loaded after the scan.
+    /// The scan's feature points (a landmark file), loaded after the scan. Without it, the
+    /// scan's correction file `<stem>.landmarks.json` (beside it, or in --landmarks-dir) is
+    /// loaded if there is one, and replaces --detect.
     #[arg(long, value_name = "JSON")]
     pub landmarks: Option<PathBuf>,
+    /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
+    /// *Save as correction* writes there too.
+    #[arg(long, value_name = "DIR")]
+    pub landmarks_dir: Option<PathBuf>,
     /// Run the denoising filter (default parameters) after loading.
     #[arg(long)]
     pub denoise: bool,

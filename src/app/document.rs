@@ -20,9 +20,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 use std::sync::Arc;
 
+mod corrections;
 mod receive;
 mod state;
 
+pub use corrections::LandmarkOrigin;
 pub use state::*;
 
 /// What a panel or the command line asks the document to do.
@@ -54,7 +56,11 @@ pub enum Command {
     DragLandmark(FeaturePoint, DVec3),
     SetLandmarks(Box<Landmarks>),
     LoadLandmarks(PathBuf),
+    /// Write the points as a landmark file (`source`, `scan`, `corrected`, `landmarks`).
     SaveLandmarks(PathBuf),
+    /// Write them as the scan's correction file (`<stem>.landmarks.json` beside it, or in the
+    /// `--landmarks-dir`), which every batch command then uses.
+    SaveCorrection,
     /// Register the generic face to the working scan with the current landmarks.
     Register,
     /// Write the registered generic face (.obj/.ply).
@@ -135,6 +141,11 @@ pub struct Document {
     /// The edits as last loaded or saved, part by part: what [`Document::unsaved`] compares
     /// against (so undoing back to the saved state counts as saved again).
     saved: Edits,
+    /// Where the feature points started (detection, a loaded file); see
+    /// [`Document::landmark_file`].
+    pub landmark_origin: Option<LandmarkOrigin>,
+    /// Folder of correction files (`view --landmarks-dir`); `None`: beside the scan.
+    pub landmarks_dir: Option<PathBuf>,
     /// Edits from an autosave, put back once the scan it was made on has loaded.
     pending_restore: Option<Edits>,
     /// The autosave's denoising, run again once its scan has loaded.
@@ -199,6 +210,8 @@ impl Document {
                 landmarks,
                 ..Edits::default()
             },
+            landmark_origin: None,
+            landmarks_dir: None,
             pending_restore: None,
             pending_denoise: None,
             history: History::new(200),
@@ -356,6 +369,7 @@ impl Document {
                     self.registration = None;
                     self.edits.landmarks = Some(self.generic.landmarks());
                     self.saved.landmarks = self.edits.landmarks;
+                    self.landmark_origin = None;
                     self.edits.erased.clear();
                     self.saved.erased.clear();
                     self.rebuild_working();
@@ -445,26 +459,15 @@ impl Document {
                 self.version += 1;
                 Vec::new()
             }
-            Command::LoadLandmarks(path) => match crate::pipeline::read_landmarks(&path) {
-                Ok(l) => {
-                    self.status = Some(format!("loaded {}", path.display()));
-                    self.saved.landmarks = Some(l);
-                    self.apply(Command::SetLandmarks(Box::new(l)))
-                }
-                Err(e) => self.fail(e.to_string()),
-            },
+            Command::LoadLandmarks(path) => self.load_landmark_file(&path),
             Command::SaveLandmarks(path) => {
-                let Some(l) = &self.edits.landmarks else {
-                    return self.fail("no landmarks to save");
-                };
-                let text = serde_json::to_string_pretty(l).unwrap_or_default() + "\n";
-                let l = Some(*l);
-                match io::write_text_atomic(&path, &text) {
-                    Ok(()) => {
-                        self.saved.landmarks = l;
-                        self.status = Some(format!("saved {}", path.display()));
-                    }
-                    Err(e) => self.error = Some(e.to_string()),
+                self.save_landmark_file(&path);
+                Vec::new()
+            }
+            Command::SaveCorrection => {
+                match self.correction_path() {
+                    Some(path) => self.save_landmark_file(&path),
+                    None => self.error = Some("no scan: nothing to correct".into()),
                 }
                 Vec::new()
             }
@@ -475,11 +478,7 @@ impl Document {
                 };
                 // Detected cheek/forehead borders are left out, as in the pipeline, unless the
                 // user has placed them (then they are meant as the generic face's points).
-                let border_detected = self.detection.as_ref().is_some_and(|d| {
-                    crate::FeaturePoint::BORDER
-                        .iter()
-                        .all(|&p| d.report.landmarks.get(p) == landmarks.get(p))
-                });
+                let border_detected = self.borders_detected();
                 let job = Job::Register {
                     generic: self.generic.clone(),
                     scan: mesh.clone(),

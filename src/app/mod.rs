@@ -324,6 +324,7 @@ impl EditorApp {
             close_prompt: false,
             allow_close: false,
         };
+        app.doc.landmarks_dir = args.landmarks_dir.clone();
         if !app.scripted {
             app.autosave_path = autosave::default_path();
             match app.autosave_path.as_deref().and_then(autosave::find) {
@@ -546,10 +547,7 @@ impl EditorApp {
             ui.horizontal(|ui| {
                 if unsaved.contains(&document::Part::Landmarks)
                     && ui.button("Save landmarks…").clicked()
-                    && let Some(path) = rfd::FileDialog::new()
-                        .add_filter("landmarks", &["json"])
-                        .set_file_name("landmarks.json")
-                        .save_file()
+                    && let Some(path) = panels::landmarks_ui::save_dialog(self).save_file()
                 {
                     self.commands.push(Command::SaveLandmarks(path));
                 }
@@ -657,9 +655,14 @@ fn script_from_args(args: &ViewArgs) -> Vec<session::Step> {
     if args.denoise {
         script.push(Step::Denoise);
     }
+    // A correction file beside the scan gives its points when it opens (see
+    // `Document::load_correction_if_any`): no detection then.
+    let corrected = args.file.as_deref().is_some_and(|f| {
+        crate::pipeline::correction_for(f, None, args.landmarks_dir.as_deref()).is_some()
+    });
     if let Some(l) = &args.landmarks {
         script.push(Step::LoadLandmarks(l.clone()));
-    } else if args.file.is_some() && (args.detect || args.register) {
+    } else if args.file.is_some() && (args.detect || args.register) && !corrected {
         // Registration needs the points: detect them when none are given.
         script.push(Step::DetectLandmarks);
     }

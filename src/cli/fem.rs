@@ -328,6 +328,7 @@ pub fn fit_expression(
     use crate::fem::fit::{FitParams, fit_expression};
     let generic = generic_face::build();
     let prepared = crate::pipeline::prepare_scan(neutral, landmarks, &generic)?;
+    let neutral_source = prepared.landmark_source();
     let face = GenericFace {
         mesh: prepared.registration.mesh,
         feature_vertices: generic.feature_vertices,
@@ -338,11 +339,18 @@ pub fn fit_expression(
     denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
     // The expression scan's points start the rigid alignment: read, or detected (a failed
     // detection leaves the alignment to the stable regions alone).
-    let scan_landmarks = match expression_landmarks {
-        Some(path) => Some(crate::pipeline::read_landmarks(path)?),
-        None => crate::landmarks::detect(&scan, &Default::default())
-            .ok()
-            .map(|r| r.landmarks),
+    let (scan_landmarks, expression_source) = match expression_landmarks {
+        Some(path) => {
+            let file = crate::pipeline::LandmarkFile::read(path)?;
+            (Some(file.landmarks), Some(file.source))
+        }
+        None => {
+            let found = crate::landmarks::detect(&scan, &Default::default())
+                .ok()
+                .map(|r| r.landmarks);
+            let source = found.map(|_| crate::pipeline::LandmarkSource::Detected);
+            (found, source)
+        }
     };
     let presets = ExpressionSet::builtin();
     let params = FitParams::default();
@@ -418,5 +426,11 @@ pub fn fit_expression(
         "closest_preset_rms_mm": closest_rms,
         "vertices_used": fit.vertices_used,
         "residual_ply": residual,
+        // Where each scan's points came from (a correction file beside it, or detection;
+        // `null`: the expression scan's detection failed, the alignment used no points).
+        "landmarks_source": neutral_source,
+        "expression_landmarks_source": expression_source,
+        "landmarks_file": landmarks,
+        "expression_landmarks_file": expression_landmarks,
     }))
 }

@@ -38,6 +38,10 @@ pub fn landmarks(
     value["millis"] = json!(millis);
     value["input"] = json!(input);
     value["denoised"] = json!(denoise_first);
+    // The landmark file schema (`pipeline::LandmarkFile`): what it is and whose points.
+    value["source"] = json!(crate::pipeline::LandmarkSource::Detected);
+    value["scan"] = json!(input.file_name().map(|n| n.to_string_lossy()));
+    value["corrected"] = json!([]);
     if let Some(path) = out {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }

@@ -29,6 +29,7 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<serde_json::Value> {
             ..Default::default()
         },
         expression_training: args.expression_training.clone(),
+        landmarks_dir: args.landmarks_dir.clone(),
         expression_weights: (!args.no_expression_weights).then_some(
             crate::recognition::ExpressionWeightParams {
                 scale_mm: args.expression_weight_mm,
@@ -204,6 +205,15 @@ pub fn augment(
         "resumed": done.iter().filter(|a| a.resumed).count(),
         "redone_with_new_settings": done.iter().filter(|a| a.redone).count(),
         "failures": failed,
+        "shard": params.shard.map(|s| format!("{}/{}", s.index, s.count)),
+        // Scans augmented from a correction file's points rather than detected ones.
+        "corrected_landmarks": done
+            .iter()
+            .filter(|a| a.landmarks_source != crate::pipeline::LandmarkSource::Detected)
+            .map(|a| json!({
+                "scan": a.scan, "source": a.landmarks_source, "corrected": a.corrected_points,
+            }))
+            .collect::<Vec<_>>(),
         "expressions_per_scan": done.iter().map(|a| a.expressions).max().unwrap_or(0),
         "seconds": seconds,
     }))

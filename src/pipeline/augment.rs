@@ -1,7 +1,10 @@
 //! Gallery augmentation (paper section 3): 18 synthetic expressions per neutral gallery scan,
 //! in parallel, resumable, failures listed.
 
-use super::{CavityParams, TransferWeights, mouth_cavity, prepare_scan, repaired_fem_model};
+use super::{
+    CavityParams, LandmarkFile, LandmarkSource, TransferWeights, correction_for, mouth_cavity,
+    prepare_scan, repaired_fem_model,
+};
 use crate::generic_face::GenericFace;
 use crate::{Error, Result, io};
 use std::path::Path;
@@ -38,6 +41,47 @@ pub struct AugmentParams {
     pub cavity: CavityParams,
     /// Also write the FEM face's own surfaces (`face/*.obj`, for looking at). Default true.
     pub write_face_meshes: bool,
+    /// Where the correction files `<scan stem>.landmarks.json` are ([`correction_for`]);
+    /// default `None`: beside each gallery scan. A scan with one is augmented from its points.
+    pub landmarks_dir: Option<std::path::PathBuf>,
+    /// Only this share of the gallery (`--shard K/N`); default `None`: all of it.
+    pub shard: Option<Shard>,
+}
+
+/// One of `count` shares of a gallery: the scans whose index in the sorted gallery is
+/// ≡ `index` (mod `count`). Shards run anywhere (a cluster's job array) and write the same
+/// folders one run would.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    /// `K/N` with 0 ≤ K < N.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let (k, n) = s
+            .split_once('/')
+            .ok_or_else(|| format!("shard `{s}`: expected K/N, e.g. 0/16"))?;
+        let parse = |t: &str| {
+            t.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("shard `{s}`: `{t}` is not a whole number"))
+        };
+        let (index, count) = (parse(k)?, parse(n)?);
+        if count == 0 || index >= count {
+            return Err(format!("shard `{s}`: need 0 ≤ K < N"));
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+impl Shard {
+    /// The failure list's file name: `failures.K-of-N.json`.
+    pub fn failures_file(self) -> String {
+        format!("failures.{}-of-{}.json", self.index, self.count)
+    }
 }
 
 impl Default for AugmentParams {
@@ -54,6 +98,8 @@ impl Default for AugmentParams {
             laugh_base: "broad_smile".into(),
             cavity: CavityParams::default(),
             write_face_meshes: true,
+            landmarks_dir: None,
+            shard: None,
         }
     }
 }
@@ -72,6 +118,11 @@ pub struct AugmentedScan {
     pub redone: bool,
     pub expressions: usize,
     pub landmark_warnings: usize,
+    /// Where the feature points came from: detected, or a correction file (`corrected`, or
+    /// `given` for a file of unknown origin).
+    pub landmarks_source: LandmarkSource,
+    /// The points placed by hand (from the correction file).
+    pub corrected_points: Vec<String>,
     pub matched_fraction: f64,
     pub millis: f64,
 }
@@ -137,22 +188,55 @@ pub fn augment_recipe(params: &AugmentParams) -> Result<serde_json::Value> {
 }
 
 /// Whether `dir` holds a finished augmentation made with `recipe` (its [`DONE_MARKER`] records
-/// the same recipe).
-fn finished_with(dir: &Path, recipe: &serde_json::Value) -> Finished {
+/// the same recipe) from the same correction file (`correction`: its content, `null` for
+/// none).
+fn finished_with(
+    dir: &Path,
+    recipe: &serde_json::Value,
+    correction: &serde_json::Value,
+) -> Finished {
     let Ok(text) = std::fs::read_to_string(dir.join(DONE_MARKER)) else {
         return Finished::No;
     };
     match serde_json::from_str::<serde_json::Value>(&text) {
-        Ok(done) if done.get("recipe") == Some(recipe) => Finished::Same,
-        _ => Finished::OtherSettings,
+        Ok(done) if done.get("recipe") != Some(recipe) => Finished::OtherSettings,
+        Ok(done) => {
+            let recorded = done
+                .get("landmark_file")
+                .unwrap_or(&serde_json::Value::Null);
+            if recorded == correction {
+                Finished::Same
+            } else {
+                Finished::OtherLandmarks
+            }
+        }
+        Err(_) => Finished::OtherSettings,
     }
 }
 
+#[derive(Debug, PartialEq)]
 enum Finished {
     No,
     Same,
     /// Finished with other settings (or by a version that did not record them).
     OtherSettings,
+    /// Finished from other feature points: the correction file was added, changed or removed.
+    OtherLandmarks,
+}
+
+/// The correction file a gallery scan is augmented from ([`correction_for`]) and its content
+/// as recorded in [`DONE_MARKER`] (`null` without one).
+fn correction_of(
+    scan: &Path,
+    params: &AugmentParams,
+) -> Result<(Option<std::path::PathBuf>, serde_json::Value)> {
+    match correction_for(scan, None, params.landmarks_dir.as_deref()) {
+        Some(path) => {
+            let file = LandmarkFile::read(&path)?;
+            Ok((Some(path), file.to_json()))
+        }
+        None => Ok((None, serde_json::Value::Null)),
+    }
 }
 
 /// Empties a subject folder before it is (re)done: the marker first, so a run killed while
@@ -225,7 +309,8 @@ pub fn augment_scan(
     } else {
         Some(presets.select(&params.laugh_base)?)
     };
-    let prepared = prepare_scan(scan, None, generic)?;
+    let (correction, correction_json) = correction_of(scan, params)?;
+    let prepared = prepare_scan(scan, correction.as_deref(), generic)?;
     let in_file = |e: Error| e.in_file(scan);
     // Suspect points would carry a wrong registration into 18 wrong expressions.
     if let Some(report) = prepared
@@ -318,6 +403,12 @@ pub fn augment_scan(
         redone: false,
         expressions: written,
         landmark_warnings: prepared.detection.as_ref().map_or(0, |d| d.warnings.len()),
+        landmarks_source: prepared.landmark_source(),
+        corrected_points: prepared
+            .given
+            .as_ref()
+            .map(|(_, f)| f.corrected.iter().map(|p| p.name().to_string()).collect())
+            .unwrap_or_default(),
         matched_fraction: prepared.registration.matched_fraction(),
         millis: start.elapsed().as_secs_f64() * 1e3,
     };
@@ -330,6 +421,10 @@ pub fn augment_scan(
     // can be told apart.
     done["recipe"] = recipe;
     done["landmarks"] = serde_json::to_value(prepared.landmarks).unwrap_or_default();
+    // The correction file the points came from (path and content), so a changed one redoes
+    // the subject.
+    done["landmarks_file"] = serde_json::json!(correction);
+    done["landmark_file"] = correction_json;
     io::write_text_atomic(
         &out_dir.join(DONE_MARKER),
         &(serde_json::to_string_pretty(&done).unwrap_or_default() + "\n"),
@@ -348,8 +443,8 @@ pub fn augment(
     progress: &(dyn Fn(usize, usize, &str) + Sync),
 ) -> Result<(Vec<AugmentedScan>, Vec<AugmentFailure>)> {
     use rayon::prelude::*;
-    let scans = gallery_scans(gallery, &params.gallery_suffix)?;
-    if scans.is_empty() {
+    let all = gallery_scans(gallery, &params.gallery_suffix)?;
+    if all.is_empty() {
         return Err(Error::InvalidData {
             path: gallery.to_path_buf(),
             message: format!(
@@ -358,6 +453,16 @@ pub fn augment(
             ),
         });
     }
+    // This shard's share of the sorted gallery (all of it without a shard).
+    let scans: Vec<_> = match params.shard {
+        Some(sh) => all
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| i % sh.count == sh.index)
+            .map(|(_, p)| p)
+            .collect(),
+        None => all,
+    };
     // Checked once up front: a bad preset name or angle fails the batch, not every scan.
     let recipe = augment_recipe(params)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -372,35 +477,41 @@ pub fn augment(
                 .file_stem()
                 .map_or_else(|| "scan".into(), |s| s.to_string_lossy().into_owned());
             let dir = out.join(&stem);
-            let finished = finished_with(&dir, &recipe);
-            let redone = matches!(finished, Finished::OtherSettings);
-            let r = if matches!(finished, Finished::Same) {
-                Ok(AugmentedScan {
-                    scan: scan.clone(),
-                    dir,
-                    resumed: true,
-                    redone: false,
-                    expressions: 0,
-                    landmark_warnings: 0,
-                    matched_fraction: f64::NAN,
-                    millis: 0.0,
-                })
-            } else {
+            let failure = |e: Error| AugmentFailure {
+                scan: scan.clone(),
+                stage: e.stage(),
+                reason: e.to_string(),
+                suspect: e.is_suspect(),
+            };
+            let r = correction_of(scan, params).map_err(failure).and_then(|(_, json)| {
+                let finished = finished_with(&dir, &recipe, &json);
+                if finished == Finished::Same {
+                    return Ok(AugmentedScan {
+                        scan: scan.clone(),
+                        dir,
+                        resumed: true,
+                        redone: false,
+                        expressions: 0,
+                        landmark_warnings: 0,
+                        landmarks_source: serde_json::from_value(json["source"].clone())
+                            .unwrap_or(LandmarkSource::Detected),
+                        corrected_points: serde_json::from_value(json["corrected"].clone())
+                            .unwrap_or_default(),
+                        matched_fraction: f64::NAN,
+                        millis: 0.0,
+                    });
+                }
+                let redone = matches!(finished, Finished::OtherSettings | Finished::OtherLandmarks);
                 clear_samples(&dir)
                     .and_then(|()| augment_scan(scan, &dir, &generic, params))
                     .map(|a| AugmentedScan { redone, ..a })
-                    .map_err(|e| AugmentFailure {
-                        scan: scan.clone(),
-                        stage: e.stage(),
-                        reason: e.to_string(),
-                        suspect: e.is_suspect(),
-                    })
-            };
+                    .map_err(failure)
+            });
             let k = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             let line = match &r {
                 Ok(a) if a.resumed => format!("{stem}: already done"),
                 Ok(a) if a.redone => format!(
-                    "{stem}: redone (the earlier run used other settings): {} expressions in {:.0} ms",
+                    "{stem}: redone (the earlier run used other settings or feature points): {} expressions in {:.0} ms",
                     a.expressions, a.millis
                 ),
                 Ok(a) => format!(
@@ -422,8 +533,50 @@ pub fn augment(
         }
     }
     let failures = serde_json::to_string_pretty(&failed).unwrap_or_default() + "\n";
-    io::write_text_atomic(&out.join("failures.json"), &failures)?;
+    let name = params
+        .shard
+        .map_or_else(|| FAILURES_FILE.to_string(), Shard::failures_file);
+    io::write_text_atomic(&out.join(name), &failures)?;
     Ok((done, failed))
+}
+
+/// The failure list of an unsharded run; a shard writes [`Shard::failures_file`].
+pub const FAILURES_FILE: &str = "failures.json";
+
+/// The failures recorded in an augmented folder: `failures.json` and every shard's
+/// `failures.K-of-N.json`, merged (sorted by scan). A scan listed by a shard file and done by
+/// a later run (it has [`DONE_MARKER`]) is no longer a failure and is left out.
+pub fn read_augment_failures(out: &Path) -> Result<Vec<serde_json::Value>> {
+    let entries = std::fs::read_dir(out).map_err(|e| Error::io(out, e))?;
+    let mut files: Vec<_> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name().is_some_and(|n| {
+                let n = n.to_string_lossy();
+                n == FAILURES_FILE
+                    || (n.starts_with("failures.") && n.contains("-of-") && n.ends_with(".json"))
+            })
+        })
+        .collect();
+    files.sort();
+    let mut all = Vec::new();
+    for f in files {
+        let text = io::read_text_file(&f)?;
+        let list: Vec<serde_json::Value> =
+            serde_json::from_str(&text).map_err(|e| Error::invalid(&f, e.to_string()))?;
+        all.extend(list);
+    }
+    all.retain(|f| {
+        let stem = f["scan"]
+            .as_str()
+            .and_then(|s| Path::new(s).file_stem())
+            .map(|s| s.to_string_lossy().into_owned());
+        !stem.is_some_and(|s| out.join(s).join(DONE_MARKER).is_file())
+    });
+    all.sort_by(|a, b| a["scan"].as_str().cmp(&b["scan"].as_str()));
+    all.dedup_by(|a, b| a["scan"] == b["scan"]);
+    Ok(all)
 }
 
 #[cfg(test)]
@@ -450,22 +603,29 @@ mod tests {
             serde_json::to_string_pretty(&done).unwrap(),
         )
         .unwrap();
-        assert!(matches!(finished_with(dir.path(), &recipe), Finished::Same));
+        let none = serde_json::Value::Null;
+        assert_eq!(finished_with(dir.path(), &recipe, &none), Finished::Same);
+        // A correction file added since: other feature points.
+        let correction = serde_json::json!({"source": "corrected"});
+        assert_eq!(
+            finished_with(dir.path(), &recipe, &correction),
+            Finished::OtherLandmarks
+        );
         // Another activation, or no recipe at all: other settings.
         params.presets.expressions[0]
             .activations
             .insert("zygomatic_major".into(), 2.673986535703764);
         let other = augment_recipe(&params).unwrap();
-        assert!(matches!(
-            finished_with(dir.path(), &other),
+        assert_eq!(
+            finished_with(dir.path(), &other, &none),
             Finished::OtherSettings
-        ));
+        );
         std::fs::write(dir.path().join(DONE_MARKER), "{}").unwrap();
-        assert!(matches!(
-            finished_with(dir.path(), &recipe),
+        assert_eq!(
+            finished_with(dir.path(), &recipe, &none),
             Finished::OtherSettings
-        ));
+        );
         std::fs::remove_file(dir.path().join(DONE_MARKER)).unwrap();
-        assert!(matches!(finished_with(dir.path(), &recipe), Finished::No));
+        assert_eq!(finished_with(dir.path(), &recipe, &none), Finished::No);
     }
 }

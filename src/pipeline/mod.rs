@@ -6,19 +6,24 @@ use crate::denoise::{self, DenoiseParams};
 use crate::generic_face::GenericFace;
 use crate::landmarks::{self, LandmarkParams, LandmarkReport};
 use crate::registration::{self, RegistrationParams, RegistrationResult};
-use crate::{Error, Landmarks, Mesh, Result, io};
+use crate::{Landmarks, Mesh, Result, io};
 use std::path::Path;
 
 mod augment;
 mod fem_model;
+mod landmark_file;
 mod transfer;
 
 pub use augment::{
-    AugmentFailure, AugmentParams, AugmentedScan, DONE_MARKER, augment, augment_recipe,
-    augment_scan, gallery_scans,
+    AugmentFailure, AugmentParams, AugmentedScan, DONE_MARKER, FAILURES_FILE, Shard, augment,
+    augment_recipe, augment_scan, gallery_scans, read_augment_failures,
 };
 pub use fem_model::{
     FemRepairs, SURFACE_REPAIRS, fem_model, repaired_fem_model, smooth_patch, unfold_surface,
+};
+pub use landmark_file::{
+    CORRECTION_SUFFIX, LandmarkFile, LandmarkSource, correction_for, correction_path,
+    is_correction_file,
 };
 pub use transfer::{CavityParams, TransferWeights, mouth_cavity, transfer_expression};
 
@@ -43,40 +48,70 @@ pub struct PreparedScan {
     /// The scan after denoising (what the landmarks and the registration used).
     pub denoised: Mesh,
     pub landmarks: Landmarks,
-    /// The detector's report (Table 2 checks, warnings); `None` when the points were given.
+    /// The detector's report (Table 2 checks, warnings); `None` when the points were read.
     pub detection: Option<LandmarkReport>,
+    /// The file the points were read from, and what it said; `None` when detected.
+    pub given: Option<(std::path::PathBuf, LandmarkFile)>,
     pub registration: RegistrationResult,
 }
 
-/// Reads a landmark file: what `facesynth landmarks --json` writes (the points under
-/// `"landmarks"`, beside its checks) or a flat map, name → [x, y, z] mm; all 13 names.
+impl PreparedScan {
+    /// `detected`, `corrected` or `given`.
+    pub fn landmark_source(&self) -> LandmarkSource {
+        self.given
+            .as_ref()
+            .map_or(LandmarkSource::Detected, |(_, f)| f.source)
+    }
+}
+
+/// Reads a landmark file ([`LandmarkFile`]: what `facesynth landmarks --json` and the
+/// editor write, or a flat map name → [x, y, z] mm); all 13 names.
 pub fn read_landmarks(path: &Path) -> Result<Landmarks> {
-    parse_landmarks(&io::read_text_file(path)?, path)
+    Ok(LandmarkFile::read(path)?.landmarks)
 }
 
 /// Parses a landmark file's text, either shape of [`read_landmarks`] (`path` only names it in
 /// errors).
 pub fn parse_landmarks(text: &str, path: &Path) -> Result<Landmarks> {
-    let value: serde_json::Value = serde_json::from_str(text)
-        .map_err(|e| Error::syntax(path, e.line(), format!("not a landmark file: {e}")))?;
-    let points = match value.get("landmarks") {
-        Some(inner) if inner.is_object() => inner.clone(),
-        _ => value,
-    };
-    serde_json::from_value(points)
-        .map_err(|e| Error::invalid(path, format!("not a landmark file: {e}")))
+    Ok(LandmarkFile::parse(text, path)?.landmarks)
+}
+
+/// A scan's feature points and where they came from.
+pub struct ScanLandmarks {
+    pub landmarks: Landmarks,
+    pub detection: Option<LandmarkReport>,
+    pub given: Option<(std::path::PathBuf, LandmarkFile)>,
+}
+
+impl ScanLandmarks {
+    /// The points the registration matches ([`registration_points`]).
+    pub fn registration_points(&self) -> Vec<(crate::FeaturePoint, glam::DVec3)> {
+        let borders_detected = self
+            .given
+            .as_ref()
+            .is_none_or(|(_, f)| f.borders_detected());
+        registration_points(&self.landmarks, borders_detected)
+    }
 }
 
 /// The scan's feature points: read from `given`, else detected on the (denoised) mesh.
-pub fn scan_landmarks(
-    denoised: &Mesh,
-    given: Option<&Path>,
-) -> Result<(Landmarks, Option<LandmarkReport>)> {
+pub fn scan_landmarks(denoised: &Mesh, given: Option<&Path>) -> Result<ScanLandmarks> {
     match given {
-        Some(path) => Ok((read_landmarks(path)?, None)),
+        Some(path) => {
+            let file = LandmarkFile::read(path)?;
+            Ok(ScanLandmarks {
+                landmarks: file.landmarks,
+                detection: None,
+                given: Some((path.to_path_buf(), file)),
+            })
+        }
         None => {
             let report = landmarks::detect(denoised, &LandmarkParams::default())?;
-            Ok((report.landmarks, Some(report)))
+            Ok(ScanLandmarks {
+                landmarks: report.landmarks,
+                detection: Some(report),
+                given: None,
+            })
         }
     }
 }
@@ -88,22 +123,24 @@ pub fn prepare_mesh(
     generic: &GenericFace,
 ) -> Result<PreparedScan> {
     denoise::denoise(&mut scan, &DenoiseParams::default())?;
-    let (points, detection) = scan_landmarks(&scan, landmarks_file)?;
+    let points = scan_landmarks(&scan, landmarks_file)?;
     let registration = registration::register_points(
         generic,
         &scan,
-        &registration_points(&points, detection.is_some()),
+        &points.registration_points(),
         &RegistrationParams::default(),
     )?;
     Ok(PreparedScan {
         denoised: scan,
-        landmarks: points,
-        detection,
+        landmarks: points.landmarks,
+        detection: points.detection,
+        given: points.given,
         registration,
     })
 }
 
-/// [`prepare_mesh`] on a file; errors name the file.
+/// [`prepare_mesh`] on a file; errors name the file. `landmarks_file`: the points to use
+/// (see [`correction_for`]); `None` detects them.
 pub fn prepare_scan(
     path: &Path,
     landmarks_file: Option<&Path>,

@@ -6,6 +6,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod editor_corrections;
 mod editor_document;
 mod shaders;
 mod viewer_screenshot;

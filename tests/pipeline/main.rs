@@ -9,4 +9,5 @@ mod common;
 mod augment;
 mod augment_resume;
 mod cli;
+mod corrections;
 mod fem_cli;

@@ -30,6 +30,7 @@ impl Document {
                 // and none of its vertices is erased.
                 self.edits.landmarks = None;
                 self.saved.landmarks = None;
+                self.landmark_origin = None;
                 self.edits.erased.clear();
                 self.saved.erased.clear();
                 self.history.clear();
@@ -39,6 +40,10 @@ impl Document {
                     self.edits = edits;
                 }
                 self.rebuild_working();
+                // Corrections beside the scan win over detection.
+                if self.edits.landmarks.is_none() {
+                    jobs.extend(self.load_correction_if_any());
+                }
                 if let (Some(params), Some(scan)) = (self.pending_denoise.take(), &self.scan) {
                     let job = Job::Denoise {
                         mesh: scan.mesh.clone(),
@@ -75,6 +80,12 @@ impl Document {
             JobResult::Detected(Ok(d)) => {
                 self.history.checkpoint(&self.edits);
                 self.edits.landmarks = Some(d.report.landmarks);
+                self.landmark_origin = Some(LandmarkOrigin {
+                    baseline: d.report.landmarks,
+                    source: crate::pipeline::LandmarkSource::Detected,
+                    corrected: Vec::new(),
+                    file: None,
+                });
                 self.status = Some(match d.report.warnings.len() {
                     0 => format!("13 points found in {:.0} ms", d.millis),
                     n => format!("13 points found, {n} warnings"),

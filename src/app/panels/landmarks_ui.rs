@@ -6,6 +6,24 @@ use super::super::{EditorApp, feature_colour};
 use crate::feature_points::FeaturePoint;
 use eframe::egui;
 
+/// The save dialog for landmark files: in the scan's folder, named as its correction file.
+pub fn save_dialog(app: &EditorApp) -> rfd::FileDialog {
+    let dialog = rfd::FileDialog::new().add_filter("landmarks", &["json"]);
+    match app.doc.correction_path() {
+        Some(path) => {
+            let dialog = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+                Some(dir) => dialog.set_directory(dir),
+                None => dialog,
+            };
+            dialog.set_file_name(
+                path.file_name()
+                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            )
+        }
+        None => dialog.set_file_name("landmarks.json"),
+    }
+}
+
 pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
     ui.small("left/right = the subject's own (left is +x, the image's right in a front view)");
     ui.horizontal(|ui| {
@@ -31,14 +49,39 @@ pub fn landmarks_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                 egui::Button::new("Save JSON…"),
             )
             .clicked()
-            && let Some(path) = rfd::FileDialog::new()
-                .add_filter("landmarks", &["json"])
-                .set_file_name("landmarks.json")
-                .save_file()
+            && let Some(path) = save_dialog(app).save_file()
         {
             app.commands.push(Command::SaveLandmarks(path));
         }
     });
+    if let Some(path) = app.doc.correction_path() {
+        let name = path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        if ui
+            .add_enabled(
+                app.doc.edits.landmarks.is_some(),
+                egui::Button::new(format!("Save as correction ({name})")),
+            )
+            .on_hover_text(format!(
+                "{}: register, augment, evaluate and fit-expression use these points instead \
+                 of detecting",
+                path.display()
+            ))
+            .clicked()
+        {
+            app.commands.push(Command::SaveCorrection);
+        }
+    }
+    if let Some(file) = app.doc.landmark_file() {
+        let moved = file.corrected.len();
+        ui.small(match file.source {
+            crate::pipeline::LandmarkSource::Corrected => {
+                format!("points: corrected ({moved} placed by hand)")
+            }
+            s => format!("points: {}", s.name()),
+        });
+    }
     ui.horizontal(|ui| {
         if ui
             .add_enabled(app.doc.history.can_undo(), egui::Button::new("Undo"))

@@ -4,7 +4,7 @@
 pub(super) mod denoise_ui;
 mod expressions_ui;
 mod file_ui;
-mod landmarks_ui;
+pub(super) mod landmarks_ui;
 mod materials_ui;
 mod muscles_ui;
 mod registration_ui;

@@ -116,6 +116,10 @@ pub struct ProtocolParams {
     /// ([`super::expression_weights`]), used whenever the gallery has synthetic samples;
     /// `None` scores every sample alike (the paper). Default on, scale 0.5 mm.
     pub expression_weights: Option<ExpressionWeightParams>,
+    /// Where the correction files `<scan stem>.landmarks.json` are
+    /// ([`crate::pipeline::correction_for`]); default `None`: beside each scan. A scan with one
+    /// is posed by its points (every pose source but [`PoseSource::Truth`]).
+    pub landmarks_dir: Option<PathBuf>,
 }
 
 impl Default for ProtocolParams {
@@ -139,6 +143,7 @@ impl Default for ProtocolParams {
             icp: PoseParams::default(),
             expression_training: None,
             expression_weights: Some(ExpressionWeightParams::default()),
+            landmarks_dir: None,
         }
     }
 }
@@ -249,6 +254,10 @@ pub struct Report {
     pub pose_points: PosePoints,
     /// Gallery scans whose detected feature points were read from augment's `done.json`.
     pub cached_landmarks: usize,
+    /// Scans posed by a correction file's points (`<stem>.landmarks.json`).
+    pub corrected_landmarks: Vec<PathBuf>,
+    /// Gallery scans `augment` failed on (its `failures*.json`, shards merged).
+    pub augment_failures: Vec<serde_json::Value>,
     pub rank1: f64,
     pub rank5: f64,
     pub cmc: Vec<f64>,
@@ -414,6 +423,10 @@ pub struct Samples {
     pub suspect: Vec<Failure>,
     /// Gallery scans whose feature points came from augment's `done.json` (not re-detected).
     pub cached_landmarks: usize,
+    /// Scans posed by the points of a correction file (`<stem>.landmarks.json`), not detected.
+    pub corrected_landmarks: Vec<PathBuf>,
+    /// Augment's failures (`failures.json` and every shard's `failures.K-of-N.json`).
+    pub augment_failures: Vec<serde_json::Value>,
     /// Wall time of building them, s.
     pub seconds: f64,
     /// Wall time per stage, s: `start_poses` (read + denoise + feature points of every scan),
@@ -463,9 +476,32 @@ pub fn collect_samples(
         None => None,
     };
     let generic = crate::generic_face::build();
-    let cached: Vec<Option<crate::Landmarks>> = scans
+    // A scan's correction file, where there is one (read errors fail that scan only).
+    let corrections: Vec<Option<std::result::Result<crate::Landmarks, Failure>>> = scans
         .iter()
         .map(|s| {
+            let path =
+                crate::pipeline::correction_for(&s.path, None, params.landmarks_dir.as_deref())
+                    .filter(|_| params.pose != PoseSource::Truth)?;
+            Some(crate::pipeline::read_landmarks(&path).map_err(|e| Failure {
+                file: s.path.clone(),
+                reason: e.to_string(),
+            }))
+        })
+        .collect();
+    let corrected_landmarks: Vec<PathBuf> = scans
+        .iter()
+        .zip(&corrections)
+        .filter(|(_, c)| matches!(c, Some(Ok(_))))
+        .map(|(s, _)| s.path.clone())
+        .collect();
+    let cached: Vec<Option<crate::Landmarks>> = scans
+        .iter()
+        .zip(&corrections)
+        .map(|(s, c)| {
+            if let Some(Ok(points)) = c {
+                return Some(*points);
+            }
             augmented
                 .filter(|_| {
                     matches!(params.pose, PoseSource::Auto | PoseSource::Landmarks)
@@ -474,6 +510,10 @@ pub fn collect_samples(
                 .and_then(|aug| cached_landmarks(aug, s))
         })
         .collect();
+    let augment_failures = match augmented {
+        Some(aug) => crate::pipeline::read_augment_failures(aug)?,
+        None => Vec::new(),
+    };
     let mut stage_seconds = BTreeMap::new();
     let mut lap = Instant::now();
     let mut stage = |name: &str| {
@@ -484,7 +524,11 @@ pub fn collect_samples(
     let checked: Vec<std::result::Result<(ScanPose, Vec<String>), Failure>> = scans
         .par_iter()
         .zip(&cached)
-        .map(|(s, lm)| {
+        .zip(&corrections)
+        .map(|((s, lm), correction)| {
+            if let Some(Err(f)) = correction {
+                return Err(f.clone());
+            }
             let fail = |e: Error| Failure {
                 file: s.path.clone(),
                 reason: e.to_string(),
@@ -602,7 +646,13 @@ pub fn collect_samples(
         probes,
         failures,
         suspect,
-        cached_landmarks: cached.iter().filter(|c| c.is_some()).count(),
+        cached_landmarks: cached
+            .iter()
+            .zip(&corrections)
+            .filter(|(c, k)| c.is_some() && k.is_none())
+            .count(),
+        corrected_landmarks,
+        augment_failures,
         seconds: t0.elapsed().as_secs_f64(),
         stage_seconds,
     })

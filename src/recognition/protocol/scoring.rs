@@ -266,6 +266,8 @@ fn rank_probes(
         pose: params.pose,
         pose_points: params.pose_points,
         cached_landmarks: samples.cached_landmarks,
+        corrected_landmarks: samples.corrected_landmarks.clone(),
+        augment_failures: samples.augment_failures.clone(),
         rank1: all.rank1,
         rank5: all.rank5,
         cmc: all.cmc,

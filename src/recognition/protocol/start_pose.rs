@@ -59,7 +59,8 @@ pub fn truth_face_from_scan(scan_path: &Path) -> Result<DMat3> {
 
 /// The nose tip and frontalising rotation of a scan from `params.pose` (before the ICP
 /// refinement of [`PoseSource::Icp`], which starts from identity). `landmarks`: the scan's
-/// feature points if already detected (augment's cache), used by [`PoseSource::Auto`]. The
+/// feature points if already known (a correction file, augment's cache), used by every source
+/// but [`PoseSource::Truth`] (the nose tip only, for identity and ICP). The
 /// mesh is read only where the pose needs it (not for cached points or the ground truth).
 pub fn scan_pose(
     scan_path: &Path,
@@ -112,7 +113,10 @@ pub fn scan_pose_checked(
         )),
         PoseSource::Identity | PoseSource::Icp => Ok((
             ScanPose {
-                nose_tip_in_scan: nose_tip(scan_path)?,
+                nose_tip_in_scan: match landmarks {
+                    Some(points) => points.get(crate::FeaturePoint::NoseTip),
+                    None => nose_tip(scan_path)?,
+                },
                 face_from_scan: DMat3::IDENTITY,
             },
             Vec::new(),
