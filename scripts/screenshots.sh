@@ -34,3 +34,22 @@ mkdir -p "$out/session"
 if [ -n "${DISPLAY:-}" ]; then "$bin" view --session scripts/session_cara1.ron
 else xvfb-run -a -s "-screen 0 1400x900x24" "$bin" view --session scripts/session_cara1.ron; fi
 echo "screenshots: $out/session/"
+# The review queue on four real scans (a profile among them): screenshots/review/*.png; the
+# corrections and the detection cache go to screenshots/review/corrections (the scans are links).
+rev=$(mktemp -d)
+for f in cara1_frontal1 cara1_derecha cara1_sonrisa cara1_gesto; do
+  ln -s "$(pwd)/../shared/data/gavabdb/$f.wrl" "$rev/$f.wrl"
+done
+mkdir -p "$out/review/corrections"
+cat > "$rev/session.ron" <<RON
+[
+    Screenshot("$out/review/1_worst_first.png"),
+    NudgeLandmark(point: "outer_eye_left", offset_mm: (4.0, 0.0, 0.0)),
+    ReviewNext,
+    Screenshot("$out/review/2_next_after_a_correction.png"),
+]
+RON
+if [ -n "${DISPLAY:-}" ]; then "$bin" review "$rev" --landmarks-dir "$out/review/corrections" --session "$rev/session.ron"
+else xvfb-run -a -s "-screen 0 1400x900x24" "$bin" review "$rev" --landmarks-dir "$out/review/corrections" --session "$rev/session.ron"; fi
+rm -rf "$rev"
+echo "screenshots: $out/review/"

@@ -372,6 +372,25 @@ pub enum Command {
     },
     /// Open the editor window on a scan (or the generic face).
     View(ViewArgs),
+    /// Review the feature points of every scan in a folder, worst first, in the editor: each
+    /// row says detected / corrected / suspect and why; Next / Previous (N / P) open the next
+    /// scan with its points, and moved points are written as `<stem>.landmarks.json`, which
+    /// every batch command then uses. Detection is cached (`.facesynth-review.json`).
+    Review {
+        dir: PathBuf,
+        /// Folder of the correction files (default: beside the scans).
+        #[arg(long, value_name = "DIR")]
+        landmarks_dir: Option<PathBuf>,
+        /// Print the queue as JSON instead of opening the editor (no window).
+        #[arg(long)]
+        list: bool,
+        /// A scripted session in the review window (see `view --session`).
+        #[arg(long, value_name = "RON")]
+        session: Option<PathBuf>,
+        /// Save the window as a PNG once the queue has opened, and exit.
+        #[arg(long, value_name = "PNG")]
+        screenshot: Option<PathBuf>,
+    },
 }
 
 /// Options of `facesynth evaluate`.
@@ -710,6 +729,45 @@ pub fn run(cli: Cli) -> Result<()> {
             print_json(&serde_json::to_value(report.summary())?)
         }
         Some(Command::View(args)) => view(args),
+        Some(Command::Review {
+            dir,
+            landmarks_dir,
+            list: true,
+            ..
+        }) => {
+            let queue =
+                crate::pipeline::ReviewQueue::build(&dir, landmarks_dir.as_deref(), &|k, n| {
+                    if k > 0 {
+                        eprintln!("review [{k}/{n}]");
+                    }
+                })?;
+            print_json(&json!({
+                "dir": queue.dir,
+                "scans": queue.entries.len(),
+                "reviewed": queue.reviewed(),
+                "cached": queue.cached,
+                "entries": queue.entries.iter().map(|e| json!({
+                    "scan": e.scan, "state": e.state, "reason": e.reason,
+                    "problems": e.problems, "face_likeness": e.face_likeness,
+                    "reviewed": e.reviewed,
+                })).collect::<Vec<_>>(),
+            }))
+        }
+        Some(Command::Review {
+            dir,
+            landmarks_dir,
+            session,
+            screenshot,
+            ..
+        }) => view(ViewArgs {
+            review: Some(dir),
+            landmarks_dir,
+            session,
+            screenshot,
+            width: 1280,
+            height: 800,
+            ..ViewArgs::default()
+        }),
         None => view(cli.view),
     }
 }

@@ -23,6 +23,9 @@ pub struct ViewArgs {
     /// loaded if there is one, and replaces --detect.
     #[arg(long, value_name = "JSON")]
     pub landmarks: Option<PathBuf>,
+    /// Review the scans of this folder, worst feature points first (`facesynth review DIR`).
+    #[arg(long, value_name = "DIR")]
+    pub review: Option<PathBuf>,
     /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
     /// *Save as correction* writes there too.
     #[arg(long, value_name = "DIR")]

@@ -22,9 +22,11 @@ use std::sync::Arc;
 
 mod corrections;
 mod receive;
+mod review;
 mod state;
 
 pub use corrections::LandmarkOrigin;
+pub use review::{Review, ReviewProgress};
 pub use state::*;
 
 /// What a panel or the command line asks the document to do.
@@ -61,6 +63,14 @@ pub enum Command {
     /// Write them as the scan's correction file (`<stem>.landmarks.json` beside it, or in the
     /// `--landmarks-dir`), which every batch command then uses.
     SaveCorrection,
+    /// Build the review queue of a folder (detection on the worker, cached) and open its worst
+    /// scan.
+    Review(PathBuf),
+    /// Open the review queue's next / previous / n-th scan (writing the open one's correction
+    /// if its points were moved).
+    ReviewNext,
+    ReviewPrevious,
+    ReviewGo(usize),
     /// Register the generic face to the working scan with the current landmarks.
     Register,
     /// Write the registered generic face (.obj/.ply).
@@ -146,6 +156,13 @@ pub struct Document {
     pub landmark_origin: Option<LandmarkOrigin>,
     /// Folder of correction files (`view --landmarks-dir`); `None`: beside the scan.
     pub landmarks_dir: Option<PathBuf>,
+    /// The review queue, once built.
+    pub review: Option<Review>,
+    /// The queue's detection while it runs.
+    pub review_progress: Option<Arc<ReviewProgress>>,
+    /// Points for the scan being opened (the review queue's detection), used when it has no
+    /// correction file.
+    pending_points: Option<crate::pipeline::LandmarkFile>,
     /// Edits from an autosave, put back once the scan it was made on has loaded.
     pending_restore: Option<Edits>,
     /// The autosave's denoising, run again once its scan has loaded.
@@ -212,6 +229,9 @@ impl Document {
             },
             landmark_origin: None,
             landmarks_dir: None,
+            review: None,
+            review_progress: None,
+            pending_points: None,
             pending_restore: None,
             pending_denoise: None,
             history: History::new(200),
@@ -464,6 +484,20 @@ impl Document {
                 self.save_landmark_file(&path);
                 Vec::new()
             }
+            Command::Review(dir) => self.start_review(dir),
+            Command::ReviewNext | Command::ReviewPrevious => {
+                let current = self.review.as_ref().and_then(|r| r.current);
+                match (command, current) {
+                    (Command::ReviewNext, Some(i)) => self.review_go(i + 1),
+                    (Command::ReviewPrevious, Some(0)) => {
+                        self.status = Some("start of the review queue".into());
+                        Vec::new()
+                    }
+                    (Command::ReviewPrevious, Some(i)) => self.review_go(i - 1),
+                    _ => self.review_go(0),
+                }
+            }
+            Command::ReviewGo(i) => self.review_go(i),
             Command::SaveCorrection => {
                 match self.correction_path() {
                     Some(path) => self.save_landmark_file(&path),

@@ -430,6 +430,7 @@ impl EditorApp {
         } else if undo {
             self.commands.push(Command::Undo);
         }
+        panels::review_ui::review_keys(self, ctx);
         if ctx.input(|i| i.key_pressed(egui::Key::Escape)) {
             self.picking = None;
             self.erasing = false;
@@ -649,6 +650,9 @@ impl EditorApp {
 fn script_from_args(args: &ViewArgs) -> Vec<session::Step> {
     use session::Step;
     let mut script = Vec::new();
+    if let Some(dir) = &args.review {
+        script.push(Step::Review(dir.clone()));
+    }
     if let Some(file) = &args.file {
         script.push(Step::Open(file.clone()));
     }

@@ -86,6 +86,11 @@ pub enum Step {
         yaw_deg: f64,
         pitch_deg: f64,
     },
+    /// Build the review queue of a folder and open its worst scan.
+    Review(PathBuf),
+    /// The review queue's next / previous scan (moved points are saved as the correction).
+    ReviewNext,
+    ReviewPrevious,
     /// Open exactly these side-panel sections (`denoise`, `landmarks`, `registration`,
     /// `materials`, `muscles`, `expressions`, `view`), so a screenshot shows that panel.
     Panels(Vec<String>),
@@ -197,6 +202,9 @@ impl Step {
             Step::LoadPresets(p) => commands(vec![C::LoadPresets(p.clone())]),
             Step::FitExpression(p) => commands(vec![C::FitExpression(p.clone())]),
             Step::ExportExpression(p) => commands(vec![C::ExportExpression(p.clone())]),
+            Step::Review(dir) => commands(vec![C::Review(dir.clone())]),
+            Step::ReviewNext => commands(vec![C::ReviewNext]),
+            Step::ReviewPrevious => commands(vec![C::ReviewPrevious]),
             Step::Undo => commands(vec![C::Undo]),
             Step::Redo => commands(vec![C::Redo]),
             Step::Show(o) => Ok(Action::View(ViewChange::Show(*o))),

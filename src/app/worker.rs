@@ -44,6 +44,12 @@ pub enum Job {
         neutral: Option<Arc<Mesh>>,
         presets: ExpressionSet,
     },
+    /// Build the review queue of a folder (detection where the cache has none).
+    Review {
+        dir: PathBuf,
+        landmarks_dir: Option<PathBuf>,
+        progress: Arc<super::document::ReviewProgress>,
+    },
     /// Bring the FEM model up to date with these inputs (build, refactor or re-solve, as
     /// little as the change needs) and return its basis.
     Fem {
@@ -62,6 +68,7 @@ pub enum JobResult {
     Fem(Result<Box<FemState>, String>),
     Detected(Result<Box<DetectionState>, String>),
     Fitted(Result<Box<FitState>, String>),
+    Reviewed(Result<Box<crate::pipeline::ReviewQueue>, String>),
 }
 
 pub struct Worker {
@@ -285,6 +292,19 @@ pub fn run_job(job: Job) -> JobResult {
         }
         Job::DetectLandmarks { mesh } => JobResult::Detected(detect(&mesh).map(Box::new)),
         Job::Load(path) => JobResult::Loaded(load_scan(path).map(Box::new)),
+        Job::Review {
+            dir,
+            landmarks_dir,
+            progress,
+        } => {
+            use std::sync::atomic::Ordering::Relaxed;
+            let queue =
+                crate::pipeline::ReviewQueue::build(&dir, landmarks_dir.as_deref(), &|k, n| {
+                    progress.total.store(n, Relaxed);
+                    progress.done.store(k, Relaxed);
+                });
+            JobResult::Reviewed(queue.map(Box::new).map_err(|e| e.to_string()))
+        }
         Job::Denoise { mesh, params } => JobResult::Denoised(denoise(&mesh, params).map(Box::new)),
         Job::Register {
             generic,

@@ -12,6 +12,7 @@ use std::path::Path;
 mod augment;
 mod fem_model;
 mod landmark_file;
+mod review;
 mod transfer;
 
 pub use augment::{
@@ -25,6 +26,7 @@ pub use landmark_file::{
     CORRECTION_SUFFIX, LandmarkFile, LandmarkSource, correction_for, correction_path,
     is_correction_file,
 };
+pub use review::{REVIEW_CACHE, ReviewEntry, ReviewQueue, ReviewState, scan_files};
 pub use transfer::{CavityParams, TransferWeights, mouth_cavity, transfer_expression};
 
 /// The points the registration is driven by. Detected cheek and forehead points are the face

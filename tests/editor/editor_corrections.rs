@@ -101,3 +101,52 @@ fn saved_points_say_where_they_came_from_and_a_correction_reopens_with_its_scan(
         );
     }
 }
+
+/// The review queue without a window: it opens the worst scan with its detected points; a
+/// moved point is written as that scan's correction when moving on; going back opens it with
+/// the corrected points; the counter follows.
+#[test]
+fn the_review_queue_writes_a_correction_when_moving_on() {
+    let data = common::synth_dataset(3, 11, false);
+    let dir = tempfile::tempdir().unwrap();
+    for s in ["subj000", "subj001", "subj002"] {
+        let name = format!("{s}_frontal1.wrl");
+        std::fs::copy(data.join(&name), dir.path().join(&name)).unwrap();
+    }
+    let mut doc = Document::new(generic_face::build());
+    apply(&mut doc, Command::Review(dir.path().to_path_buf()));
+    let review = doc.review.clone().expect("queue built");
+    assert_eq!(review.queue.entries.len(), 3);
+    assert_eq!(review.current, Some(0));
+    let first = review.queue.entries[0].scan.clone();
+    assert_eq!(doc.scan.as_ref().unwrap().path, first);
+    let detected = doc.edits.landmarks.expect("the queue's points");
+    assert_eq!(
+        doc.landmark_file().unwrap().source,
+        LandmarkSource::Detected
+    );
+    assert_eq!(doc.review_counter().unwrap(), "0 of 3 reviewed");
+
+    let tip = detected.get(FeaturePoint::NoseTip) + DVec3::new(0.0, -1.0, 0.5);
+    apply(&mut doc, Command::MoveLandmark(FeaturePoint::NoseTip, tip));
+    apply(&mut doc, Command::ReviewNext);
+    let written = facesynth::pipeline::correction_path(&first, None);
+    let file = LandmarkFile::read(&written).expect("correction written on moving on");
+    assert_eq!(file.corrected, [FeaturePoint::NoseTip]);
+    assert_eq!(file.landmarks.get(FeaturePoint::NoseTip), tip);
+    assert_ne!(doc.scan.as_ref().unwrap().path, first);
+    assert_eq!(doc.review_counter().unwrap(), "1 of 3 reviewed");
+    // Moving on without a change writes nothing.
+    apply(&mut doc, Command::ReviewNext);
+    let corrections = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter(|e| facesynth::pipeline::is_correction_file(&e.as_ref().unwrap().path()))
+        .count();
+    assert_eq!(corrections, 1);
+    assert_eq!(doc.review_counter().unwrap(), "2 of 3 reviewed");
+    // Back to the first: its corrected points.
+    apply(&mut doc, Command::ReviewGo(0));
+    assert_eq!(doc.edits.landmarks, Some(file.landmarks));
+    let entry = &doc.review.as_ref().unwrap().queue.entries[0];
+    assert_eq!(entry.state, facesynth::pipeline::ReviewState::Corrected);
+}

@@ -274,3 +274,81 @@ fn one_session_shapes_a_mirrored_smile_softens_the_skin_stores_a_preset_and_undo
         "mirrored"
     );
 }
+
+/// `facesynth review DIR --session`: the queue opens in a window, three scans are reviewed,
+/// one point is corrected; the correction is on disk, the cache counts the reviewed scans, and
+/// `augment` then builds that subject from the corrected points.
+#[test]
+fn a_review_session_corrects_one_point_and_augment_uses_it() {
+    let data = common::synth_dataset(3, 11, false);
+    let gallery = tempfile::tempdir().unwrap();
+    for s in ["subj000", "subj001", "subj002"] {
+        let name = format!("{s}_frontal1.wrl");
+        std::fs::copy(data.join(&name), gallery.path().join(&name)).unwrap();
+    }
+    let shots = tempfile::tempdir().unwrap();
+    let d = shots.path().display();
+    let session = shots.path().join("review.ron");
+    std::fs::write(
+        &session,
+        format!(
+            r#"[
+                Screenshot("{d}/queue.png"),
+                NudgeLandmark(point: "mouth_corner_left", offset_mm: (0.0, 4.0, 0.0)),
+                ReviewNext,
+                ReviewNext,
+                ReviewNext,
+            ]"#
+        ),
+    )
+    .unwrap();
+    run_in_window(&[
+        "review".as_ref(),
+        gallery.path().as_os_str(),
+        "--session".as_ref(),
+        session.as_os_str(),
+    ]);
+    let (covered, _) = viewport_stats(&shots.path().join("queue.png"));
+    assert!(covered > 0.05, "the first scan of the queue is not drawn");
+    let corrections: Vec<_> = std::fs::read_dir(gallery.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| facesynth::pipeline::is_correction_file(p))
+        .collect();
+    assert_eq!(corrections.len(), 1, "{corrections:?}");
+    let file = facesynth::pipeline::LandmarkFile::read(&corrections[0]).unwrap();
+    assert_eq!(file.corrected, [facesynth::FeaturePoint::MouthCornerLeft]);
+    let listed = common::json_of(&common::facesynth(&[
+        "review",
+        gallery.path().to_str().unwrap(),
+        "--list",
+    ]));
+    assert_eq!(listed["reviewed"], 3);
+    assert_eq!(listed["cached"], 3);
+    assert_eq!(listed["entries"][2]["state"], "corrected");
+
+    let out = tempfile::tempdir().unwrap();
+    let report = common::json_of(&common::facesynth(&[
+        "augment",
+        "--gallery",
+        gallery.path().to_str().unwrap(),
+        "--out",
+        out.path().to_str().unwrap(),
+        "--expressions",
+        "happiness",
+        "--no-face-meshes",
+    ]));
+    let corrected = report["corrected_landmarks"].as_array().unwrap();
+    assert_eq!(corrected.len(), 1);
+    assert_eq!(
+        corrected[0]["corrected"],
+        serde_json::json!(["mouth_corner_left"])
+    );
+    let stem = file.scan.as_deref().unwrap().trim_end_matches(".wrl");
+    let done: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.path().join(stem).join("done.json")).unwrap(),
+    )
+    .unwrap();
+    let used: facesynth::Landmarks = serde_json::from_value(done["landmarks"].clone()).unwrap();
+    assert_eq!(used, file.landmarks);
+}

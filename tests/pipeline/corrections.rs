@@ -369,3 +369,95 @@ fn three_shards_write_what_one_run_writes() {
     assert!(!run.status.success());
     assert!(err.contains("shard `3/3`: need 0 ≤ K < N"), "{err}");
 }
+
+/// The review queue: a broken file first, then a suspect scan (a real profile), then the
+/// detected ones, the corrected one last; the second build reads every detection from the
+/// cache, a changed scan is detected again, and the reviewed marks persist.
+#[test]
+fn the_review_queue_puts_the_worst_first_and_caches_its_detection() {
+    use facesynth::pipeline::{ReviewQueue, ReviewState};
+    let data = common::synth_dataset(2, 11, false);
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["subj000_frontal1.wrl", "subj001_frontal1.wrl"] {
+        std::fs::copy(data.join(name), dir.path().join(name)).unwrap();
+    }
+    std::fs::copy(
+        common::gavab("cara1_derecha.wrl"),
+        dir.path().join("cara1_derecha.wrl"),
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("broken.wrl"), "#VRML V1.0 ascii\n[").unwrap();
+    // subj001 was corrected already: last.
+    let scan1 = dir.path().join("subj001_frontal1.wrl");
+    let lm = dir.path().join("lm.json");
+    common::json_of(&common::facesynth(&[
+        "landmarks",
+        scan1.to_str().unwrap(),
+        "--json",
+        lm.to_str().unwrap(),
+    ]));
+    let mut file = LandmarkFile::read(&lm).unwrap();
+    std::fs::remove_file(&lm).unwrap();
+    file.source = LandmarkSource::Corrected;
+    file.corrected = vec![FeaturePoint::Chin];
+    file.write(&pipeline::correction_path(&scan1, None))
+        .unwrap();
+
+    let calls = std::sync::Mutex::new(0);
+    let count = |_: usize, _: usize| *calls.lock().unwrap() += 1;
+    let mut queue = ReviewQueue::build(dir.path(), None, &count).unwrap();
+    let order: Vec<(String, ReviewState)> = queue
+        .entries
+        .iter()
+        .map(|e| {
+            (
+                e.scan.file_name().unwrap().to_string_lossy().into_owned(),
+                e.state,
+            )
+        })
+        .collect();
+    assert_eq!(
+        order,
+        [
+            ("broken.wrl".to_string(), ReviewState::Failed),
+            ("cara1_derecha.wrl".to_string(), ReviewState::Suspect),
+            ("subj000_frontal1.wrl".to_string(), ReviewState::Detected),
+            ("subj001_frontal1.wrl".to_string(), ReviewState::Corrected),
+        ]
+    );
+    assert!(queue.entries[0].reason.contains("broken.wrl"));
+    assert!(
+        queue.entries[1].reason.contains("profile"),
+        "{}",
+        queue.entries[1].reason
+    );
+    assert!(queue.entries[3].reason.contains("chin"));
+    assert_eq!(queue.cached, 0);
+    assert_eq!(*calls.lock().unwrap(), 5, "once before, once per scan");
+    assert_eq!(queue.reviewed(), 1, "a corrected scan is reviewed");
+    // The detected points of a scan are what `landmarks` finds.
+    let detected = queue.entries[2].detected_file().unwrap();
+    let cli = common::json_of(&common::facesynth(&[
+        "landmarks",
+        dir.path().join("subj000_frontal1.wrl").to_str().unwrap(),
+    ]));
+    let cli: Landmarks = serde_json::from_value(cli["landmarks"].clone()).unwrap();
+    for p in FeaturePoint::ALL {
+        assert!(
+            (detected.landmarks.get(p) - cli.get(p)).length() < 1e-3,
+            "{p:?}"
+        );
+    }
+    queue.mark_reviewed(2).unwrap();
+
+    // Again: all from the cache, the same queue, the mark kept.
+    let again = ReviewQueue::build(dir.path(), None, &|_, _| {}).unwrap();
+    assert_eq!(again.cached, 4);
+    assert_eq!(again.entries, queue.entries);
+    assert_eq!(again.reviewed(), 2);
+    // A scan rewritten since (another size): detected again.
+    let text = std::fs::read_to_string(dir.path().join("broken.wrl")).unwrap();
+    std::fs::write(dir.path().join("broken.wrl"), text + "\n").unwrap();
+    let third = ReviewQueue::build(dir.path(), None, &|_, _| {}).unwrap();
+    assert_eq!(third.cached, 3);
+}

@@ -101,17 +101,33 @@ impl Document {
         }
     }
 
-    /// After a scan has loaded: its correction file, if there is one, gives its points.
-    pub(super) fn load_correction_if_any(&mut self) -> Vec<Job> {
-        match self.correction_path().filter(|p| p.is_file()) {
-            Some(path) => {
-                let jobs = self.load_landmark_file(&path);
-                // The scan's own points, as it opened: nothing to undo, nothing unsaved.
-                self.history.clear();
-                jobs
-            }
-            None => Vec::new(),
+    /// After a scan has loaded: its correction file, if there is one, gives its points; else
+    /// the points the review queue detected for it, if it was opened from there.
+    pub(super) fn points_on_open(&mut self) -> Vec<Job> {
+        let pending = self.pending_points.take();
+        if self.edits.landmarks.is_some() {
+            return Vec::new();
         }
+        let jobs = match self.correction_path().filter(|p| p.is_file()) {
+            Some(path) => self.load_landmark_file(&path),
+            None => {
+                if let Some(file) = pending {
+                    self.edits.landmarks = Some(file.landmarks);
+                    self.saved.landmarks = Some(file.landmarks);
+                    self.landmark_origin = Some(LandmarkOrigin {
+                        baseline: file.landmarks,
+                        source: file.source,
+                        corrected: file.corrected,
+                        file: None,
+                    });
+                    self.version += 1;
+                }
+                Vec::new()
+            }
+        };
+        // The scan's own points, as it opened: nothing to undo, nothing unsaved.
+        self.history.clear();
+        jobs
     }
 
     /// Whether the registration should leave the cheek and forehead points out (the detector's

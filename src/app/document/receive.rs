@@ -13,6 +13,7 @@ impl Document {
             JobResult::Registered(_) => "registering",
             JobResult::Fem(_) => "solving",
             JobResult::Detected(_) => "detecting",
+            JobResult::Reviewed(_) => "reviewing",
             JobResult::Fitted(_) => "fitting",
         };
         if let Some(i) = self.pending.iter().position(|p| *p == what) {
@@ -41,9 +42,7 @@ impl Document {
                 }
                 self.rebuild_working();
                 // Corrections beside the scan win over detection.
-                if self.edits.landmarks.is_none() {
-                    jobs.extend(self.load_correction_if_any());
-                }
+                jobs.extend(self.points_on_open());
                 if let (Some(params), Some(scan)) = (self.pending_denoise.take(), &self.scan) {
                     let job = Job::Denoise {
                         mesh: scan.mesh.clone(),
@@ -94,7 +93,9 @@ impl Document {
                 self.detected_on = self.detect_sent_on;
                 self.version += 1;
             }
+            JobResult::Reviewed(Ok(queue)) => jobs.extend(self.review_ready(*queue)),
             JobResult::Loaded(Err(e))
+            | JobResult::Reviewed(Err(e))
             | JobResult::Denoised(Err(e))
             | JobResult::Registered(Err(e))
             | JobResult::Fem(Err(e))
@@ -103,6 +104,10 @@ impl Document {
                 let restoring = what == "loading" && self.pending_restore.take().is_some();
                 if what == "loading" {
                     self.pending_denoise = None;
+                    self.pending_points = None;
+                }
+                if what == "reviewing" {
+                    self.review_progress = None;
                 }
                 self.error = Some(if restoring {
                     format!("autosave not restored: {e}")

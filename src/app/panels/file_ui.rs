@@ -16,6 +16,14 @@ pub fn file_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         {
             app.commands.push(Command::Open(Some(path)));
         }
+        if ui
+            .button("Review folder…")
+            .on_hover_text("every scan of a folder, worst feature points first")
+            .clicked()
+            && let Some(dir) = rfd::FileDialog::new().pick_folder()
+        {
+            app.commands.push(Command::Review(dir));
+        }
         if ui.button("Generic face").clicked() {
             app.commands.push(Command::Open(None));
         }

@@ -8,6 +8,7 @@ pub(super) mod landmarks_ui;
 mod materials_ui;
 mod muscles_ui;
 mod registration_ui;
+pub(super) mod review_ui;
 mod view_ui;
 
 use super::EditorApp;
@@ -61,6 +62,11 @@ pub fn side_panel_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         ui.small(status);
     }
     ui.separator();
+    if app.doc.review.is_some() || app.doc.review_progress.is_some() {
+        egui::CollapsingHeader::new("Review queue")
+            .default_open(true)
+            .show(ui, |ui| review_ui::review_ui(app, ui));
+    }
     let open = app.panels_open;
     // A session step may set which sections are open (once; the user can toggle them again).
     let force = app.panels_force.take();
