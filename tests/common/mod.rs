@@ -61,6 +61,19 @@ pub fn synth_dataset(subjects: usize, seed: u64, clean: bool) -> PathBuf {
     dir
 }
 
+/// A folder of its own holding copies of the first `n` gallery scans (`subjNNN_frontal1.wrl`)
+/// of a generated dataset (3 subjects, seed 11): for tests that write beside the scans
+/// (corrections, the review cache) or add files to a gallery.
+pub fn gallery_copy(n: usize) -> tempfile::TempDir {
+    let data = synth_dataset(3, 11, false);
+    let dir = tempfile::tempdir().unwrap();
+    for i in 0..n {
+        let name = format!("subj{i:03}_frontal1.wrl");
+        std::fs::copy(data.join(&name), dir.path().join(&name)).unwrap();
+    }
+    dir
+}
+
 /// Runs the `facesynth` binary with `args`.
 pub fn facesynth(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_facesynth"))

@@ -107,12 +107,7 @@ fn saved_points_say_where_they_came_from_and_a_correction_reopens_with_its_scan(
 /// the corrected points; the counter follows.
 #[test]
 fn the_review_queue_writes_a_correction_when_moving_on() {
-    let data = common::synth_dataset(3, 11, false);
-    let dir = tempfile::tempdir().unwrap();
-    for s in ["subj000", "subj001", "subj002"] {
-        let name = format!("{s}_frontal1.wrl");
-        std::fs::copy(data.join(&name), dir.path().join(&name)).unwrap();
-    }
+    let dir = common::gallery_copy(3);
     let mut doc = Document::new(generic_face::build());
     apply(&mut doc, Command::Review(dir.path().to_path_buf()));
     let review = doc.review.clone().expect("queue built");

@@ -280,12 +280,7 @@ fn one_session_shapes_a_mirrored_smile_softens_the_skin_stores_a_preset_and_undo
 /// `augment` then builds that subject from the corrected points.
 #[test]
 fn a_review_session_corrects_one_point_and_augment_uses_it() {
-    let data = common::synth_dataset(3, 11, false);
-    let gallery = tempfile::tempdir().unwrap();
-    for s in ["subj000", "subj001", "subj002"] {
-        let name = format!("{s}_frontal1.wrl");
-        std::fs::copy(data.join(&name), gallery.path().join(&name)).unwrap();
-    }
+    let gallery = common::gallery_copy(3);
     let shots = tempfile::tempdir().unwrap();
     let d = shots.path().display();
     let session = shots.path().join("review.ron");

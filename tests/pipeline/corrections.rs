@@ -282,12 +282,7 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
 /// go to `failures.K-of-N.json` and are merged on read.
 #[test]
 fn three_shards_write_what_one_run_writes() {
-    let data = common::synth_dataset(3, 11, false);
-    let gallery = tempfile::tempdir().unwrap();
-    for s in ["subj000", "subj001", "subj002"] {
-        let name = format!("{s}_frontal1.wrl");
-        std::fs::copy(data.join(&name), gallery.path().join(&name)).unwrap();
-    }
+    let gallery = common::gallery_copy(3);
     // Sorted first, so shard 0 of 3 gets it together with subj002.
     std::fs::write(
         gallery.path().join("broken_frontal1.wrl"),
