@@ -456,3 +456,43 @@ fn the_review_queue_puts_the_worst_first_and_caches_its_detection() {
     let third = ReviewQueue::build(dir.path(), None, &|_, _| {}).unwrap();
     assert_eq!(third.cached, 3);
 }
+
+/// `fit-expression` takes each scan's correction file (neutral and expression) and says so.
+#[test]
+fn fit_expression_uses_the_corrections_beside_both_scans() {
+    let data = common::synth_dataset(2, 11, false);
+    let dir = tempfile::tempdir().unwrap();
+    let mut scans = Vec::new();
+    for name in ["subj000_frontal1.wrl", "subj000_sonrisa.wrl"] {
+        let scan = dir.path().join(name);
+        std::fs::copy(data.join(name), &scan).unwrap();
+        let lm = dir.path().join("lm.json");
+        common::json_of(&common::facesynth(&[
+            "landmarks",
+            scan.to_str().unwrap(),
+            "--json",
+            lm.to_str().unwrap(),
+        ]));
+        let mut file = LandmarkFile::read(&lm).unwrap();
+        std::fs::remove_file(&lm).unwrap();
+        file.source = LandmarkSource::Corrected;
+        file.write(&pipeline::correction_path(&scan, None)).unwrap();
+        scans.push(scan);
+    }
+    let preset = dir.path().join("fit.ron");
+    let v = common::json_of(&common::facesynth(&[
+        "fit-expression",
+        scans[0].to_str().unwrap(),
+        scans[1].to_str().unwrap(),
+        "--out",
+        preset.to_str().unwrap(),
+    ]));
+    assert_eq!(v["landmarks_source"], "corrected");
+    assert_eq!(v["expression_landmarks_source"], "corrected");
+    assert!(
+        v["expression_landmarks_file"]
+            .as_str()
+            .unwrap()
+            .ends_with("subj000_sonrisa.landmarks.json")
+    );
+}

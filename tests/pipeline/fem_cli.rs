@@ -185,6 +185,9 @@ fn fit_expression_writes_a_loadable_preset() {
     );
     assert!(after < 0.6 * before, "{before} -> {after}");
     assert!(v["closest_preset"].is_string());
+    // Both scans' points came from the (flat, ground-truth) files.
+    assert_eq!(v["landmarks_source"], "given");
+    assert_eq!(v["expression_landmarks_source"], "given");
     // 18 muscles, the 8 soft-tissue loads (4 pairs) and the jaw's four actuators.
     let fitted = v["activations"].as_object().unwrap();
     assert_eq!(fitted.len(), 30);

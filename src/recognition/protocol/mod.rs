@@ -258,6 +258,8 @@ pub struct Report {
     pub corrected_landmarks: Vec<PathBuf>,
     /// Gallery scans `augment` failed on (its `failures*.json`, shards merged).
     pub augment_failures: Vec<serde_json::Value>,
+    /// Probes of people without a gallery scan: not ranked (an open-set probe), not a failure.
+    pub probes_without_gallery: Vec<PathBuf>,
     pub rank1: f64,
     pub rank5: f64,
     pub cmc: Vec<f64>,

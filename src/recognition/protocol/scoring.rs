@@ -177,7 +177,7 @@ fn rank_probes(
     model: &FisherModel,
     learned: usize,
     matching: Matching,
-    mut failures: Vec<Failure>,
+    failures: Vec<Failure>,
     (t0, t_train): (Instant, f64),
     params: &ProtocolParams,
 ) -> Result<Evaluation> {
@@ -200,12 +200,11 @@ fn rank_probes(
     let mut best = Vec::new();
     let mut kinds = Vec::new();
     let mut matched = Vec::new();
+    let mut without_gallery = Vec::new();
     for p in probes {
+        // Nothing failed: the person is not in the gallery, so the probe cannot be ranked.
         let Some(truth) = id_of(&p.subject) else {
-            failures.push(Failure {
-                file: p.path.clone(),
-                reason: format!("subject {} has no gallery scan", p.subject),
-            });
+            without_gallery.push(p.path.clone());
             continue;
         };
         let proj = model.project(&p.features);
@@ -268,6 +267,7 @@ fn rank_probes(
         cached_landmarks: samples.cached_landmarks,
         corrected_landmarks: samples.corrected_landmarks.clone(),
         augment_failures: samples.augment_failures.clone(),
+        probes_without_gallery: without_gallery,
         rank1: all.rank1,
         rank5: all.rank5,
         cmc: all.cmc,
