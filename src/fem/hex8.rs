@@ -91,16 +91,8 @@ pub fn min_gauss_jacobian_det(nodes_mm: &[DVec3; 8]) -> f64 {
 /// ≤ 0 for an inverted or collapsed corner (a collapsed hex that stands in for a wedge has 0).
 pub fn scaled_jacobian(nodes_mm: &[DVec3; 8]) -> f64 {
     let mut min = f64::INFINITY;
-    for (a, xi) in NODE_XI.iter().enumerate() {
-        // The three neighbours of corner a, ordered along +ξ, +η, +ζ.
-        let mut e = [DVec3::ZERO; 3];
-        for (b, xb) in NODE_XI.iter().enumerate() {
-            let diff: Vec<usize> = (0..3).filter(|&k| xb[k] != xi[k]).collect();
-            if diff.len() == 1 {
-                let k = diff[0];
-                e[k] = (nodes_mm[b] - nodes_mm[a]) * (xb[k] - xi[k]).signum();
-            }
-        }
+    for (a, (edges, signs)) in CORNER_EDGES.iter().enumerate() {
+        let e = [0, 1, 2].map(|k| (nodes_mm[edges[k]] - nodes_mm[a]) * signs[k]);
         let len = e[0].length() * e[1].length() * e[2].length();
         let s = if len > 0.0 {
             e[0].dot(e[1].cross(e[2])) / len
@@ -110,6 +102,41 @@ pub fn scaled_jacobian(nodes_mm: &[DVec3; 8]) -> f64 {
         min = min.min(s);
     }
     min
+}
+
+/// Per corner: its neighbour along +ξ, +η, +ζ (the corner that differs from it in that
+/// coordinate only) and the sign that makes the edge point along the axis.
+const CORNER_EDGES: [([usize; 3], [f64; 3]); 8] = corner_edges();
+
+const fn corner_edges() -> [([usize; 3], [f64; 3]); 8] {
+    let mut out = [([0; 3], [0.0; 3]); 8];
+    let mut a = 0;
+    while a < 8 {
+        let mut b = 0;
+        while b < 8 {
+            let mut differ = 0;
+            let mut axis = 0;
+            let mut k = 0;
+            while k < 3 {
+                if NODE_XI[b][k] != NODE_XI[a][k] {
+                    differ += 1;
+                    axis = k;
+                }
+                k += 1;
+            }
+            if differ == 1 {
+                out[a].0[axis] = b;
+                out[a].1[axis] = if NODE_XI[b][axis] > NODE_XI[a][axis] {
+                    1.0
+                } else {
+                    -1.0
+                };
+            }
+            b += 1;
+        }
+        a += 1;
+    }
+    out
 }
 
 /// Why an element stiffness could not be computed.

@@ -36,9 +36,6 @@ pub struct LayerParams {
     /// 12 mm offset folds under the nose, lips, chin and eye rims (198 inverted elements on the
     /// generic face; 2 rounds: 142; 8: 38; 20: none).
     pub normal_smoothing_rounds: usize,
-    /// If local thinning cannot stop elements inverting, the rounds are doubled up to this many
-    /// (default 160) before giving up with [`FemError::InvertedElement`].
-    pub max_smoothing_rounds: usize,
     /// Rounds of umbrella (Laplacian, λ = ½) smoothing of the cranium node layer (default 0).
     /// Smoothing it untangles folds of the fat layer in creases (under the nose, the lip
     /// line) that smoother directions alone cannot; the cranium layer becomes smoother than
@@ -56,7 +53,6 @@ impl Default for LayerParams {
             skin_thickness_mm: 3.0,
             fat_thickness_mm: 9.0,
             normal_smoothing_rounds: 20,
-            max_smoothing_rounds: 160,
             layer_smoothing_rounds: 0,
             max_thinned_fraction: 0.05,
         }
@@ -99,6 +95,23 @@ fn offset_directions(surface: &Mesh, rounds: usize) -> Vec<DVec3> {
     normals
 }
 
+/// The smallest scaled Jacobian an element may have (Verdict's acceptable range for hexahedra
+/// starts at 0.2): below it a corner is so skewed that the trilinear element's strain is
+/// unreliable, and at 0 it is inverted. [`extrude_valid`] thins the layers locally until every
+/// element is above it.
+pub const MIN_SCALED_JACOBIAN: f64 = 0.2;
+
+/// The elements at or below [`MIN_SCALED_JACOBIAN`], or with a Gauss-point Jacobian ≤ 0.
+pub fn poor_elements(mesh: &HexMesh) -> Vec<usize> {
+    (0..mesh.elements.len())
+        .filter(|&e| {
+            let nodes = mesh.element_nodes(e);
+            !(hex8::min_gauss_jacobian_det(&nodes) > 0.0
+                && hex8::scaled_jacobian(&nodes) > MIN_SCALED_JACOBIAN)
+        })
+        .collect()
+}
+
 /// What [`extrude_valid`] had to do to avoid inverted elements.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct ExtrusionFix {
@@ -110,43 +123,58 @@ pub struct ExtrusionFix {
     pub min_thickness_factor: f64,
 }
 
-/// Extrudes `surface` so that no element inverts, with
-/// [`LayerParams::normal_smoothing_rounds`]. Where elements invert (creases of a registered
-/// scan, e.g. under the nostrils) the layer thickness is reduced **locally**: the corners of
-/// each inverted element get ×0.85 per pass, down to 0.2 of the requested thickness. If that
-/// is not enough, the smoothing rounds are doubled (up to
-/// [`LayerParams::max_smoothing_rounds`]) and thinning starts over. Errors with
-/// [`FemError::InvertedElement`] when nothing helps.
+/// Extrudes `surface` so that every element's scaled Jacobian is above
+/// [`MIN_SCALED_JACOBIAN`], with [`LayerParams::normal_smoothing_rounds`]. The inner node
+/// layers are evened out first ([`super::untangle`]); where elements still invert or skew
+/// (creases of a registered scan, e.g. under the nostrils, where the offset directions converge
+/// and the deep face of an element shrinks) the layer thickness is reduced **locally**: the
+/// corners of each poor element get ×0.85 per pass, down to 0.2 of the requested thickness.
+/// Errors with [`FemError::InvertedElement`] (or [`FemError::PoorElement`] when no element is
+/// inverted) when that is not enough: the surface itself must change there (the caller's
+/// repair, `pipeline::fem_model`). Smoother offset directions (more rounds) were the old
+/// remedy; with the inner layers evened out they only made more elements poor on real
+/// registrations and cost time (docs/measurements.md).
 pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, ExtrusionFix)> {
     let n = surface.vertex_count();
-    let first_inverted = |mesh: &HexMesh| {
+    // (element, min Gauss-point det, scaled Jacobian) of every poor element.
+    let poor = |mesh: &HexMesh| {
         (0..mesh.elements.len())
-            .map(|e| (e, hex8::min_gauss_jacobian_det(&mesh.element_nodes(e))))
-            .filter(|(_, det)| !(*det > 0.0))
+            .map(|e| {
+                let nodes = mesh.element_nodes(e);
+                (
+                    e,
+                    hex8::min_gauss_jacobian_det(&nodes),
+                    hex8::scaled_jacobian(&nodes),
+                )
+            })
+            .filter(|(_, det, sj)| !(*det > 0.0 && *sj > MIN_SCALED_JACOBIAN))
             .collect::<Vec<_>>()
     };
-    let mut rounds = params.normal_smoothing_rounds;
+    let topology = crate::mesh::Topology::new(surface);
     let mut scale = vec![1.0; n];
     loop {
-        let p = LayerParams {
-            normal_smoothing_rounds: rounds,
-            ..*params
-        };
-        let mesh = extrude_scaled(surface, &p, &scale)?;
-        let inverted = first_inverted(&mesh);
-        if inverted.is_empty() {
+        let mut mesh = extrude_scaled(surface, params, &scale)?;
+        super::untangle::untangle(
+            &mut mesh,
+            &topology,
+            &surface.normals,
+            surface.face_count(),
+            MIN_SCALED_JACOBIAN,
+        );
+        let poor = poor(&mesh);
+        if poor.is_empty() {
             let thinned = scale.iter().filter(|&&s| s < 1.0).count();
             return Ok((
                 mesh,
                 ExtrusionFix {
-                    normal_smoothing_rounds: rounds,
+                    normal_smoothing_rounds: params.normal_smoothing_rounds,
                     thinned_vertices: thinned,
                     min_thickness_factor: scale.iter().copied().fold(1.0, f64::min),
                 },
             ));
         }
         let mut changed = false;
-        for &(e, _) in &inverted {
+        for &(e, _, _) in &poor {
             for &node in &mesh.elements[e] {
                 let v = node as usize % n;
                 if scale[v] > 0.2 {
@@ -159,15 +187,21 @@ pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, E
         if changed && thinned as f64 <= params.max_thinned_fraction * n as f64 {
             continue;
         }
-        if rounds < params.max_smoothing_rounds {
-            rounds = (2 * rounds).clamp(1, params.max_smoothing_rounds);
-            scale.iter_mut().for_each(|s| *s = 1.0);
-            continue;
-        }
-        let (element, det) = inverted[0];
-        return Err(FemError::InvertedElement {
-            element,
-            min_jacobian_det: det,
+        // The worst element names the failure: inverted if any is.
+        let &(element, det, sj) = poor
+            .iter()
+            .min_by(|a, b| a.1.min(a.2).total_cmp(&b.1.min(b.2)))
+            .expect("not empty");
+        return Err(if det > 0.0 {
+            FemError::PoorElement {
+                element,
+                scaled_jacobian: sj,
+            }
+        } else {
+            FemError::InvertedElement {
+                element,
+                min_jacobian_det: det,
+            }
         }
         .into());
     }

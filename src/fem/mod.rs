@@ -26,6 +26,7 @@ pub mod layers;
 pub mod muscles;
 pub mod picture;
 pub mod solver;
+pub mod untangle;
 pub mod vtk;
 
 use crate::feature_points::FeaturePoint;

@@ -20,7 +20,8 @@ pub use augment::{
     augment_recipe, augment_scan, gallery_scans, read_augment_failures,
 };
 pub use fem_model::{
-    FemRepairs, SURFACE_REPAIRS, fem_model, repaired_fem_model, smooth_patch, unfold_surface,
+    FemRepairs, MIN_QUAD_SCALED_JACOBIAN, SURFACE_REPAIRS, fem_model, quad_corner_quality,
+    quad_scaled_jacobian, relax_skewed_quads, repaired_fem_model, smooth_patch, unfold_surface,
 };
 pub use landmark_file::{
     CORRECTION_SUFFIX, LandmarkFile, LandmarkSource, correction_for, correction_path,

@@ -63,8 +63,13 @@ fn fit_a_synthetic_smile_scan() {
         &Default::default(),
     )
     .unwrap();
-    let mut model =
-        FaceModel::new(&reg.mesh, generic.feature_vertices, &FemParams::default()).unwrap();
+    // As every command builds it: a registered surface needs its local repairs.
+    let (mut model, _) = facesynth::pipeline::repaired_fem_model(
+        &reg.mesh,
+        generic.feature_vertices,
+        &FemParams::default(),
+    )
+    .unwrap();
     model.set_muscles(&MuscleSet::builtin()).unwrap();
     model.compute_basis().unwrap();
     for scan_name in ["sonrisa", "risa"] {

@@ -11,3 +11,4 @@ mod augment_resume;
 mod cli;
 mod corrections;
 mod fem_cli;
+mod fem_quality;
