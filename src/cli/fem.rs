@@ -420,12 +420,19 @@ pub fn fit_expression(
         "activations": activations,
         "rms_before_mm": round(fit.rms_before_mm, 4),
         "rms_after_mm": round(fit.rms_after_mm, 4),
+        // The same over the mouth, cheeks and chin (what an expression moves most).
+        "moving_rms_before_mm": round(fit.moving_rms_before_mm, 4),
+        "moving_rms_after_mm": round(fit.moving_rms_after_mm, 4),
+        "moving_vertices": fit.moving_vertices,
         "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
         "repairs": repairs,
         "closest_preset": closest,
         "closest_preset_rms_mm": closest_rms,
         "vertices_used": fit.vertices_used,
         "residual_ply": residual,
+        // The rigid motion of the expression scan onto the model and the stable parts'
+        // agreement after it.
+        "alignment": fit.alignment,
         // Where each scan's points came from (a correction file beside it, or detection;
         // `null`: the expression scan's detection failed, the alignment used no points).
         "landmarks_source": neutral_source,

@@ -87,25 +87,94 @@ pub struct FitResult {
     pub vertices_used: usize,
     /// The expression scan moved into the model's frame.
     pub aligned_scan: Mesh,
+    /// The rigid motion that moved it, and how well the stable parts agree after it.
+    pub alignment: Alignment,
+    /// RMS before and after over the part an expression moves most: the fitted vertices below
+    /// the eyes outside the nose (mouth, cheeks, chin), against the finally aligned scan, mm.
+    pub moving_rms_before_mm: f64,
+    pub moving_rms_after_mm: f64,
+    /// Vertices in that part.
+    pub moving_vertices: usize,
 }
+
+/// The rigid alignment of the expression scan onto the model ([`align_scan`]), as reported.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Alignment {
+    /// Angle of the rotation, degrees.
+    pub rotation_deg: f64,
+    /// Translation, mm (model frame).
+    pub translation_mm: [f64; 3],
+    /// RMS distance of the model's stable vertices to the aligned scan, mm, per stable part
+    /// (vertices within [`FitParams::max_distance_mm`] of the scan).
+    pub forehead_rms_mm: f64,
+    pub nose_rms_mm: f64,
+    /// Stable vertices that found the scan within reach.
+    pub stable_vertices_on_scan: usize,
+}
+
+/// After the rigid fit, a stable part (forehead, nose) farther than this from the expression
+/// scan (RMS) means the two scans do not show the same rigid face: another person, a hat or
+/// hair over the forehead, or a failed detection that started the fit elsewhere. Scanner noise
+/// and what expressions do to the forehead and nose stay well below it (brow raisers move the
+/// lower forehead, which the forehead part excludes; cara1: 0.3–0.6 mm).
+pub const STABLE_PART_MAX_RMS_MM: f64 = 2.5;
 
 /// ICP pairs farther apart than this many times the median pair distance (but at least
 /// [`ICP_TRIM_MIN_MM`]) are left out of a round.
 const ICP_TRIM_FACTOR: f64 = 2.5;
 const ICP_TRIM_MIN_MM: f64 = 1.0;
 
-/// Stable vertices for rigid alignment: the upper forehead and the nose.
-fn stable_vertices(model: &FaceModel) -> Result<Vec<usize>> {
+/// Stable vertices for rigid alignment, by part: the upper forehead and the nose.
+fn stable_parts(model: &FaceModel) -> Result<(Vec<usize>, Vec<usize>)> {
     let s = &model.surface;
     let pos = |p: FeaturePoint| s.positions_mm[model.feature_vertices[p.index()] as usize];
     let frame = FaceFrame::new(pos)?;
     let nose = pos(FeaturePoint::NoseTip);
-    Ok((0..s.vertex_count())
-        .filter(|&v| {
-            let d = s.positions_mm[v] - nose;
-            d.dot(frame.y) > 0.75 * frame.scale_y_mm || d.length() < 0.3 * frame.scale_xz_mm
-        })
-        .collect())
+    let mut forehead = Vec::new();
+    let mut nose_part = Vec::new();
+    for v in 0..s.vertex_count() {
+        let d = s.positions_mm[v] - nose;
+        if d.dot(frame.y) > 0.75 * frame.scale_y_mm {
+            forehead.push(v);
+        } else if d.length() < 0.3 * frame.scale_xz_mm {
+            nose_part.push(v);
+        }
+    }
+    Ok((forehead, nose_part))
+}
+
+/// Stable vertices for rigid alignment: the upper forehead and the nose.
+fn stable_vertices(model: &FaceModel) -> Result<Vec<usize>> {
+    let (mut forehead, nose) = stable_parts(model)?;
+    forehead.extend(nose);
+    Ok(forehead)
+}
+
+/// The RMS distance of `vertices` (positions `reference_mm`) to `scan`, over those within
+/// `max_mm` of it, and how many those are.
+fn part_rms(
+    reference_mm: &[DVec3],
+    vertices: &[usize],
+    index: &SurfaceIndex,
+    max_mm: f64,
+) -> (f64, usize) {
+    let d: Vec<f64> = vertices
+        .iter()
+        .filter_map(|&v| index.closest(reference_mm[v], max_mm).map(|(d, _)| d))
+        .collect();
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt();
+    (rms, d.len())
+}
+
+/// The rigid motion taking `from` to `to` (same vertices, moved rigidly), as an angle in
+/// degrees and a translation.
+fn rigid_motion(from: &Mesh, to: &Mesh) -> Result<(f64, [f64; 3])> {
+    let step = (from.vertex_count() / 200).max(1);
+    let a: Vec<DVec3> = from.positions_mm.iter().step_by(step).copied().collect();
+    let b: Vec<DVec3> = to.positions_mm.iter().step_by(step).copied().collect();
+    let t = horn_absolute_orientation(&a, &b, false)?;
+    let (_, angle) = t.rotation.to_axis_angle();
+    Ok((angle.to_degrees(), t.translation_mm.to_array()))
 }
 
 fn transform(mesh: &Mesh, t: &crate::registration::Similarity) -> Mesh {
@@ -361,6 +430,65 @@ pub fn fit_expression(
     }
     let (rms_after_mm, activations, aligned) = best;
     let index = SurfaceIndex::new(&aligned, 4.0);
+    // How well the stable parts agree, on the fitted surface (the expression moves them a
+    // little too).
+    let fitted: Vec<DVec3> = {
+        let mut w = Vec::new();
+        model.combine_surface(&activations, &mut w)?;
+        (0..n)
+            .map(|v| model.surface.positions_mm[v] + w[v])
+            .collect()
+    };
+    let (forehead, nose) = stable_parts(model)?;
+    let (forehead_rms_mm, on_forehead) =
+        part_rms(&fitted, &forehead, &index, params.max_distance_mm);
+    let (nose_rms_mm, on_nose) = part_rms(&fitted, &nose, &index, params.max_distance_mm);
+    let bad: Vec<String> = [
+        ("forehead", forehead_rms_mm, on_forehead),
+        ("nose", nose_rms_mm, on_nose),
+    ]
+    .iter()
+    .filter(|(_, rms, on)| *rms > STABLE_PART_MAX_RMS_MM || *on == 0)
+    .map(|(name, rms, on)| format!("{name} {rms:.1} mm RMS over {on} vertices"))
+    .collect();
+    if !bad.is_empty() {
+        return Err(FemError::Definition(format!(
+            "the expression scan's stable parts do not agree with the neutral face after the rigid fit ({}; at most {STABLE_PART_MAX_RMS_MM} mm): another person, hair or a hat over the forehead, or feature points detected in the wrong place",
+            bad.join(", ")
+        ))
+        .into());
+    }
+    let (rotation_deg, translation_mm) = rigid_motion(expression_scan, &aligned)?;
+    // The moving part: below the eyes (a quarter of the face height above the nose tip) and
+    // outside the nose part.
+    let moving: Vec<usize> = {
+        let s = &model.surface;
+        let pos = |p: FeaturePoint| s.positions_mm[model.feature_vertices[p.index()] as usize];
+        let frame = FaceFrame::new(pos)?;
+        let tip = pos(FeaturePoint::NoseTip);
+        let nose_set: std::collections::HashSet<usize> = nose.iter().copied().collect();
+        vertices
+            .iter()
+            .copied()
+            .filter(|&v| {
+                (s.positions_mm[v] - tip).dot(frame.y) < 0.25 * frame.scale_y_mm
+                    && !nose_set.contains(&v)
+            })
+            .collect()
+    };
+    let fitted_u: Vec<DVec3> = (0..n)
+        .map(|v| fitted[v] - model.surface.positions_mm[v])
+        .collect();
+    let moving_rms_before_mm = rms_to_scan(model, &index, &moving, &zero, params.max_distance_mm);
+    let moving_rms_after_mm =
+        rms_to_scan(model, &index, &moving, &fitted_u, params.max_distance_mm);
+    let alignment = Alignment {
+        rotation_deg,
+        translation_mm,
+        forehead_rms_mm,
+        nose_rms_mm,
+        stable_vertices_on_scan: on_forehead + on_nose,
+    };
     let names: Vec<String> = model.actuator_names();
     let mut closest_preset: Option<(String, f64)> = None;
     let mut w = Vec::new();
@@ -380,6 +508,10 @@ pub fn fit_expression(
         closest_preset,
         vertices_used: vertices.len(),
         aligned_scan: aligned,
+        alignment,
+        moving_rms_before_mm,
+        moving_rms_after_mm,
+        moving_vertices: moving.len(),
     })
 }
 
