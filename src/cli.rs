@@ -268,6 +268,10 @@ pub enum Command {
         /// MeshLab colours it by quality: where the fit misses, and in which direction.
         #[arg(long)]
         residual_ply: Option<PathBuf>,
+        /// Also write a front view of the fitted face coloured by its distance to the scan
+        /// (blue 0 → red 5 mm; blue also where no scan point is within 8 mm).
+        #[arg(long, value_name = "PNG")]
+        residual_png: Option<PathBuf>,
     },
     /// Face recognition on a GavabDB-style dataset (paper section 4): Fisherfaces on range
     /// images, gallery = frontal1 (+ synthetic expressions), probes = frontal2, sonrisa, risa,
@@ -639,6 +643,7 @@ pub fn run(cli: Cli) -> Result<()> {
             name,
             muscles,
             residual_ply,
+            residual_png,
         }) => print_json(&fem::fit_expression(
             &neutral_scan,
             &expression_scan,
@@ -657,6 +662,7 @@ pub fn run(cli: Cli) -> Result<()> {
             &fem::FitOutputs {
                 preset: &out,
                 residual_ply: residual_ply.as_deref(),
+                residual_png: residual_png.as_deref(),
             },
             name.as_deref(),
             muscles.as_deref(),

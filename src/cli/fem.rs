@@ -308,10 +308,15 @@ pub fn bench_fem() -> Result<serde_json::Value> {
     }))
 }
 
+/// The residual picture's colour scale: red at this distance to the scan, mm.
+const RESIDUAL_PNG_MAX_MM: f64 = 5.0;
+
 /// Where `fit-expression` writes: the preset, and optionally the residual map.
 pub struct FitOutputs<'a> {
     pub preset: &'a Path,
     pub residual_ply: Option<&'a Path>,
+    /// A front view of the fitted face coloured by the distance to the scan (0–5 mm).
+    pub residual_png: Option<&'a Path>,
 }
 
 /// `facesynth fit-expression`.
@@ -384,31 +389,35 @@ pub fn fit_expression(
     };
     let text = ron::ser::to_string_pretty(&preset, ron::ser::PrettyConfig::default())?;
     io::write_text_atomic(outputs.preset, &(text + "\n"))?;
-    let residual = match outputs.residual_ply {
-        Some(path) => {
-            let fitted = model.deformed_surface(&fit.activations)?;
-            let r = crate::fem::fit::signed_residuals(
-                &fitted,
-                &fit.aligned_scan,
-                params.max_distance_mm,
-            );
+    let residual = if outputs.residual_ply.is_some() || outputs.residual_png.is_some() {
+        let fitted = model.deformed_surface(&fit.activations)?;
+        let r =
+            crate::fem::fit::signed_residuals(&fitted, &fit.aligned_scan, params.max_distance_mm);
+        if let Some(path) = outputs.residual_ply {
             let quality: Vec<f32> = r.iter().map(|d| d.unwrap_or(0.0) as f32).collect();
             io::write_atomic(path, |w| {
                 io::ply::write_binary(w, &fitted, Some(("quality", &quality)))
             })?;
-            let inside: Vec<f64> = r.iter().flatten().copied().collect();
-            let rms =
-                (inside.iter().map(|d| d * d).sum::<f64>() / inside.len().max(1) as f64).sqrt();
-            Some(json!({
-                "path": path,
-                "vertices_on_scan": inside.len(),
-                "vertices_off_scan": r.len() - inside.len(),
-                "rms_mm": round(rms, 4),
-                "max_in_front_mm": round(inside.iter().copied().fold(0.0, f64::max), 4),
-                "max_behind_mm": round(-inside.iter().copied().fold(0.0, f64::min), 4),
-            }))
         }
-        None => None,
+        if let Some(path) = outputs.residual_png {
+            let magnitude: Vec<f64> = r.iter().map(|d| d.map_or(0.0, f64::abs)).collect();
+            let img =
+                crate::fem::picture::render_front(&fitted, &magnitude, RESIDUAL_PNG_MAX_MM, 480);
+            crate::fem::picture::save_png(path, &img)?;
+        }
+        let inside: Vec<f64> = r.iter().flatten().copied().collect();
+        let rms = (inside.iter().map(|d| d * d).sum::<f64>() / inside.len().max(1) as f64).sqrt();
+        Some(json!({
+            "path": outputs.residual_ply,
+            "png": outputs.residual_png,
+            "vertices_on_scan": inside.len(),
+            "vertices_off_scan": r.len() - inside.len(),
+            "rms_mm": round(rms, 4),
+            "max_in_front_mm": round(inside.iter().copied().fold(0.0, f64::max), 4),
+            "max_behind_mm": round(-inside.iter().copied().fold(0.0, f64::min), 4),
+        }))
+    } else {
+        None
     };
     let (closest, closest_rms) = fit
         .closest_preset

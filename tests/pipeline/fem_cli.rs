@@ -162,10 +162,13 @@ fn fit_expression_writes_a_loadable_preset() {
     }
     let preset = dir.path().join("smile.ron");
     let residual = dir.path().join("residual.ply");
+    let picture = dir.path().join("residual.png");
     let v = run(&[
         "fit-expression",
         "--residual-ply",
         residual.to_str().unwrap(),
+        "--residual-png",
+        picture.to_str().unwrap(),
         neutral.to_str().unwrap(),
         smile.to_str().unwrap(),
         "--landmarks",
@@ -185,6 +188,10 @@ fn fit_expression_writes_a_loadable_preset() {
     );
     assert!(after < 0.6 * before, "{before} -> {after}");
     assert!(v["closest_preset"].is_string());
+    // The residual picture: the fitted face from the front, 480 px wide, coloured (not grey).
+    let img = image::open(&picture).unwrap().to_rgb8();
+    assert_eq!(img.width(), 480);
+    assert!(img.pixels().any(|p| p.0[0].abs_diff(p.0[2]) > 100));
     // Both scans' points came from the (flat, ground-truth) files.
     assert_eq!(v["landmarks_source"], "given");
     assert_eq!(v["expression_landmarks_source"], "given");
