@@ -25,7 +25,6 @@ mod receive;
 mod review;
 mod state;
 
-pub use corrections::LandmarkOrigin;
 pub use review::{Review, ReviewProgress};
 pub use state::*;
 
@@ -151,9 +150,9 @@ pub struct Document {
     /// The edits as last loaded or saved, part by part: what [`Document::unsaved`] compares
     /// against (so undoing back to the saved state counts as saved again).
     saved: Edits,
-    /// Where the feature points started (detection, a loaded file); see
-    /// [`Document::landmark_file`].
-    pub landmark_origin: Option<LandmarkOrigin>,
+    /// Where the feature points started (the detection as a `detected` file, or the file
+    /// loaded); the points moved since are the corrections ([`Document::landmark_file`]).
+    pub landmark_origin: Option<crate::pipeline::LandmarkFile>,
     /// Folder of correction files (`view --landmarks-dir`); `None`: beside the scan.
     pub landmarks_dir: Option<PathBuf>,
     /// The review queue, once built.

@@ -101,14 +101,19 @@ fn offset_directions(surface: &Mesh, rounds: usize) -> Vec<DVec3> {
 /// element is above it.
 pub const MIN_SCALED_JACOBIAN: f64 = 0.2;
 
-/// The elements at or below [`MIN_SCALED_JACOBIAN`], or with a Gauss-point Jacobian ≤ 0.
-pub fn poor_elements(mesh: &HexMesh) -> Vec<usize> {
+/// The elements at or below [`MIN_SCALED_JACOBIAN`], or with a Gauss-point Jacobian ≤ 0:
+/// (element, smallest Gauss-point Jacobian determinant mm³, scaled Jacobian).
+pub fn poor_elements(mesh: &HexMesh) -> Vec<(usize, f64, f64)> {
     (0..mesh.elements.len())
-        .filter(|&e| {
+        .map(|e| {
             let nodes = mesh.element_nodes(e);
-            !(hex8::min_gauss_jacobian_det(&nodes) > 0.0
-                && hex8::scaled_jacobian(&nodes) > MIN_SCALED_JACOBIAN)
+            (
+                e,
+                hex8::min_gauss_jacobian_det(&nodes),
+                hex8::scaled_jacobian(&nodes),
+            )
         })
+        .filter(|(_, det, sj)| !(*det > 0.0 && *sj > MIN_SCALED_JACOBIAN))
         .collect()
 }
 
@@ -136,20 +141,6 @@ pub struct ExtrusionFix {
 /// registrations and cost time (docs/measurements.md).
 pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, ExtrusionFix)> {
     let n = surface.vertex_count();
-    // (element, min Gauss-point det, scaled Jacobian) of every poor element.
-    let poor = |mesh: &HexMesh| {
-        (0..mesh.elements.len())
-            .map(|e| {
-                let nodes = mesh.element_nodes(e);
-                (
-                    e,
-                    hex8::min_gauss_jacobian_det(&nodes),
-                    hex8::scaled_jacobian(&nodes),
-                )
-            })
-            .filter(|(_, det, sj)| !(*det > 0.0 && *sj > MIN_SCALED_JACOBIAN))
-            .collect::<Vec<_>>()
-    };
     let topology = crate::mesh::Topology::new(surface);
     let mut scale = vec![1.0; n];
     loop {
@@ -161,7 +152,7 @@ pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, E
             surface.face_count(),
             MIN_SCALED_JACOBIAN,
         );
-        let poor = poor(&mesh);
+        let poor = poor_elements(&mesh);
         if poor.is_empty() {
             let thinned = scale.iter().filter(|&&s| s < 1.0).count();
             return Ok((

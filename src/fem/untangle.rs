@@ -92,8 +92,6 @@ pub fn untangle(
                 .map(|&w| (mesh.nodes_mm[k * n + w as usize] - old).length())
                 .sum::<f64>()
                 / ring.len() as f64;
-            // Central differences along the world axes: a mirrored node gets the mirrored
-            // gradient, so a symmetric face stays symmetric.
             let penalty = |trial: &mut HexMesh, at: DVec3| {
                 trial.nodes_mm[node] = at;
                 elements
@@ -101,13 +99,9 @@ pub fn untangle(
                     .map(|&e| (GRADIENT_TARGET - sj(trial, e)).max(0.0).powi(2))
                     .sum::<f64>()
             };
-            let h = 1e-3 * edge;
-            let gradient = DVec3::new(
-                penalty(&mut trial, old + DVec3::X * h) - penalty(&mut trial, old - DVec3::X * h),
-                penalty(&mut trial, old + DVec3::Y * h) - penalty(&mut trial, old - DVec3::Y * h),
-                penalty(&mut trial, old + DVec3::Z * h) - penalty(&mut trial, old - DVec3::Z * h),
-            )
-            .normalize_or_zero();
+            let gradient =
+                crate::mesh::central_gradient(|at| penalty(&mut trial, at), old, 1e-3 * edge)
+                    .normalize_or_zero();
             let down = [0.5, 0.25, 0.125].map(|step| old - gradient * (step * edge));
             let towards = [0.5, 0.25].map(|step| old + step * (mean - old));
             for candidate in [straight, towards[0], towards[1], down[0], down[1], down[2]] {

@@ -298,6 +298,17 @@ pub fn augment_scan(
     generic: &GenericFace,
     params: &AugmentParams,
 ) -> Result<AugmentedScan> {
+    augment_scan_with(scan, correction_of(scan, params)?, out_dir, generic, params)
+}
+
+/// [`augment_scan`] with the scan's correction file already read ([`correction_of`]).
+fn augment_scan_with(
+    scan: &Path,
+    (correction, correction_json): (Option<std::path::PathBuf>, serde_json::Value),
+    out_dir: &Path,
+    generic: &GenericFace,
+    params: &AugmentParams,
+) -> Result<AugmentedScan> {
     let start = std::time::Instant::now();
     let presets = &params.presets;
     // Checked before the FEM work, so a bad name or angle fails at once, not after every
@@ -309,7 +320,6 @@ pub fn augment_scan(
     } else {
         Some(presets.select(&params.laugh_base)?)
     };
-    let (correction, correction_json) = correction_of(scan, params)?;
     let prepared = prepare_scan(scan, correction.as_deref(), generic)?;
     let in_file = |e: Error| e.in_file(scan);
     // Suspect points would carry a wrong registration into 18 wrong expressions.
@@ -483,8 +493,9 @@ pub fn augment(
                 reason: e.to_string(),
                 suspect: e.is_suspect(),
             };
-            let r = correction_of(scan, params).map_err(failure).and_then(|(_, json)| {
-                let finished = finished_with(&dir, &recipe, &json);
+            let r = correction_of(scan, params).map_err(failure).and_then(|correction| {
+                let json = &correction.1;
+                let finished = finished_with(&dir, &recipe, json);
                 if finished == Finished::Same {
                     return Ok(AugmentedScan {
                         scan: scan.clone(),
@@ -503,7 +514,7 @@ pub fn augment(
                 }
                 let redone = matches!(finished, Finished::OtherSettings | Finished::OtherLandmarks);
                 clear_samples(&dir)
-                    .and_then(|()| augment_scan(scan, &dir, &generic, params))
+                    .and_then(|()| augment_scan_with(scan, correction, &dir, &generic, params))
                     .map(|a| AugmentedScan { redone, ..a })
                     .map_err(failure)
             });

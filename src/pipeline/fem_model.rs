@@ -163,17 +163,15 @@ pub fn relax_skewed_quads(surface: &Mesh) -> (Mesh, usize) {
                 .map(|&u| (mesh.positions_mm[u as usize] - p).length())
                 .sum::<f64>()
                 / ring.len() as f64;
-            let h = 1e-3 * edge;
-            let mut at = |q: glam::DVec3| {
-                trial.positions_mm[v] = q;
-                let value = penalty(&trial, v);
-                trial.positions_mm[v] = p;
-                value
-            };
-            let g = glam::DVec3::new(
-                at(p + glam::DVec3::X * h) - at(p - glam::DVec3::X * h),
-                at(p + glam::DVec3::Y * h) - at(p - glam::DVec3::Y * h),
-                at(p + glam::DVec3::Z * h) - at(p - glam::DVec3::Z * h),
+            let g = crate::mesh::central_gradient(
+                |q| {
+                    trial.positions_mm[v] = q;
+                    let value = penalty(&trial, v);
+                    trial.positions_mm[v] = p;
+                    value
+                },
+                p,
+                1e-3 * edge,
             );
             let n = mesh.normals[v];
             let g = (g - n * n.dot(g)).normalize_or_zero();
@@ -346,7 +344,10 @@ pub fn fem_model(
             surface.face_count(),
             crate::fem::layers::MIN_SCALED_JACOBIAN,
         );
-        let mut poor = crate::fem::layers::poor_elements(&hex);
+        let mut poor: Vec<usize> = crate::fem::layers::poor_elements(&hex)
+            .into_iter()
+            .map(|(e, _, _)| e)
+            .collect();
         if poor.is_empty() {
             poor.push(element);
         }

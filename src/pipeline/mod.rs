@@ -27,7 +27,7 @@ pub use landmark_file::{
     CORRECTION_SUFFIX, LandmarkFile, LandmarkSource, correction_for, correction_path,
     is_correction_file,
 };
-pub use review::{REVIEW_CACHE, ReviewEntry, ReviewQueue, ReviewState, scan_files};
+pub use review::{REVIEW_CACHE, ReviewEntry, ReviewQueue, ReviewState};
 pub use transfer::{CavityParams, TransferWeights, mouth_cavity, transfer_expression};
 
 /// The points the registration is driven by. Detected cheek and forehead points are the face
@@ -95,6 +95,13 @@ impl ScanLandmarks {
             .is_none_or(|(_, f)| f.borders_detected());
         registration_points(&self.landmarks, borders_detected)
     }
+}
+
+/// Denoises `mesh` and detects its feature points with the default settings, as every batch
+/// command does before registering (`augment`, `evaluate`'s pose, the review queue).
+pub fn detect_scan(mut mesh: Mesh) -> Result<LandmarkReport> {
+    denoise::denoise(&mut mesh, &DenoiseParams::default())?;
+    landmarks::detect(&mesh, &LandmarkParams::default())
 }
 
 /// The scan's feature points: read from `given`, else detected on the (denoised) mesh.

@@ -12,9 +12,9 @@
 //! modification time, so the queue opens at once the second time. The cache also records which
 //! scans were reviewed.
 
-use super::{LandmarkFile, LandmarkSource, correction_for};
+use super::{LandmarkFile, LandmarkSource, correction_for, detect_scan, gallery_scans};
 use crate::landmarks::{self, LandmarkReport};
-use crate::{Error, Result, denoise, io};
+use crate::{Error, Result, io};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -101,17 +101,6 @@ struct CacheEntry {
     entry: ReviewEntry,
 }
 
-/// The scan files of a folder (mesh extensions, sorted).
-pub fn scan_files(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && io::MeshFormat::from_path(p).is_ok())
-        .collect();
-    out.sort();
-    Ok(out)
-}
-
 /// A file's size and modification time (ns since the epoch), which key the cache.
 fn stamp(path: &Path) -> Option<(u64, u128)> {
     let m = std::fs::metadata(path).ok()?;
@@ -125,10 +114,7 @@ fn stamp(path: &Path) -> Option<(u64, u128)> {
 
 /// Denoises and detects as `augment` does; the queue's row for it.
 fn detect_entry(scan: &Path) -> ReviewEntry {
-    let found = io::read_mesh(scan).and_then(|mut mesh| {
-        denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
-        landmarks::detect(&mesh, &landmarks::LandmarkParams::default())
-    });
+    let found = io::read_mesh(scan).and_then(detect_scan);
     match found {
         Ok(report) => entry_of(scan, &report),
         Err(e) => ReviewEntry {
@@ -185,7 +171,8 @@ impl ReviewQueue {
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<ReviewQueue> {
         use rayon::prelude::*;
-        let scans = scan_files(dir)?;
+        // Every mesh file of the folder (a gallery scan with any suffix).
+        let scans = gallery_scans(dir, "")?;
         if scans.is_empty() {
             return Err(Error::invalid(dir, "no scans (mesh files) to review"));
         }

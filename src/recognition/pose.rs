@@ -318,9 +318,7 @@ pub fn detect_landmarks(mesh: &Mesh) -> Result<Landmarks> {
 
 /// [`detect_landmarks`] with the whole report (confidence, localisation, suspect reasons).
 pub fn detect_report(mesh: &Mesh) -> Result<crate::landmarks::LandmarkReport> {
-    let mut denoised = mesh.clone();
-    crate::denoise::denoise(&mut denoised, &crate::denoise::DenoiseParams::default())?;
-    crate::landmarks::detect(&denoised, &crate::landmarks::LandmarkParams::default())
+    crate::pipeline::detect_scan(mesh.clone())
 }
 
 #[cfg(test)]

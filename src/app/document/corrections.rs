@@ -4,25 +4,13 @@
 use super::*;
 use crate::pipeline::{LandmarkFile, LandmarkSource};
 
-/// Where the current feature points started: a detection or a loaded file. The points moved
-/// since are the corrections.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LandmarkOrigin {
-    pub baseline: Landmarks,
-    pub source: LandmarkSource,
-    /// Points already corrected in the loaded file.
-    pub corrected: Vec<FeaturePoint>,
-    /// The file they were read from (`None`: detected).
-    pub file: Option<PathBuf>,
-}
-
 impl Document {
     /// The current points as a landmark file: `detected` (or the loaded file's source) while no
     /// point was moved, `corrected` with the moved points listed once one was.
     pub fn landmark_file(&self) -> Option<LandmarkFile> {
         let landmarks = self.edits.landmarks?;
         let (baseline, source, mut corrected) = match &self.landmark_origin {
-            Some(o) => (o.baseline, o.source, o.corrected.clone()),
+            Some(o) => (o.landmarks, o.source, o.corrected.clone()),
             // Placed by hand from the generic face's points.
             None => (
                 self.generic.landmarks(),
@@ -74,13 +62,9 @@ impl Document {
                     file.source.name()
                 ));
                 self.saved.landmarks = Some(file.landmarks);
-                self.landmark_origin = Some(LandmarkOrigin {
-                    baseline: file.landmarks,
-                    source: file.source,
-                    corrected: file.corrected.clone(),
-                    file: Some(path.to_path_buf()),
-                });
-                self.apply(Command::SetLandmarks(Box::new(file.landmarks)))
+                let landmarks = file.landmarks;
+                self.landmark_origin = Some(file);
+                self.apply(Command::SetLandmarks(Box::new(landmarks)))
             }
             Err(e) => self.fail(e.to_string()),
         }
@@ -114,12 +98,7 @@ impl Document {
                 if let Some(file) = pending {
                     self.edits.landmarks = Some(file.landmarks);
                     self.saved.landmarks = Some(file.landmarks);
-                    self.landmark_origin = Some(LandmarkOrigin {
-                        baseline: file.landmarks,
-                        source: file.source,
-                        corrected: file.corrected,
-                        file: None,
-                    });
+                    self.landmark_origin = Some(file);
                     self.version += 1;
                 }
                 Vec::new()

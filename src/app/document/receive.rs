@@ -79,11 +79,11 @@ impl Document {
             JobResult::Detected(Ok(d)) => {
                 self.history.checkpoint(&self.edits);
                 self.edits.landmarks = Some(d.report.landmarks);
-                self.landmark_origin = Some(LandmarkOrigin {
-                    baseline: d.report.landmarks,
+                self.landmark_origin = Some(crate::pipeline::LandmarkFile {
+                    landmarks: d.report.landmarks,
                     source: crate::pipeline::LandmarkSource::Detected,
+                    scan: None,
                     corrected: Vec::new(),
-                    file: None,
                 });
                 self.status = Some(match d.report.warnings.len() {
                     0 => format!("13 points found in {:.0} ms", d.millis),
