@@ -486,11 +486,20 @@ pub fn error_line(e: &anyhow::Error) -> String {
     line.replace(['\n', '\r'], " ")
 }
 
-/// Runs a parsed command line.
-pub fn run(cli: Cli) -> Result<()> {
+/// What is left to do after [`run`]: nothing, or open the editor with these options. The
+/// command line knows nothing of the GUI: `main` launches the editor.
+#[derive(Debug)]
+pub enum Next {
+    Done,
+    View(Box<ViewArgs>),
+}
+
+/// Runs a parsed command line (every headless command); `view` and `review` without `--list`
+/// come back as [`Next::View`].
+pub fn run(cli: Cli) -> Result<Next> {
     io::set_default_limits(cli.limits.read_limits());
     io::set_notice_hook(|note| eprintln!("facesynth: {note}"));
-    match cli.command {
+    let done: Result<()> = match cli.command {
         Some(Command::Info { file }) => print_json(&info(&file)?),
         Some(Command::Convert { input, output }) => {
             let mesh = io::read_mesh(&input)?;
@@ -568,22 +577,23 @@ pub fn run(cli: Cli) -> Result<()> {
                 let count = |f: &dyn Fn(&denoise::eval::VertexError) -> bool| {
                     over.iter().filter(|v| f(v)).count()
                 };
-                return print_json(&json!({
+                print_json(&json!({
                     "over_2mm": over.len(),
                     "spike": count(&|v| v.spike),
                     "spike_untouched": count(&|v| v.spike && !v.moved),
                     "boundary": count(&|v| v.boundary),
                     "damage": count(&|v| !v.spike && v.moved),
                     "worst": over.iter().take(n).collect::<Vec<_>>(),
-                }));
+                }))
+            } else {
+                let b = denoise::eval::benchmark(&pairs, k_max.max(1))?;
+                let mut v = json!({ "scans": b.scans, "table": b.table });
+                if sweeps {
+                    v["laplacian_sweep"] = json!(b.laplacian_sweep);
+                    v["taubin_sweep"] = json!(b.taubin_sweep);
+                }
+                print_json(&v)
             }
-            let b = denoise::eval::benchmark(&pairs, k_max.max(1))?;
-            let mut v = json!({ "scans": b.scans, "table": b.table });
-            if sweeps {
-                v["laplacian_sweep"] = json!(b.laplacian_sweep);
-                v["taubin_sweep"] = json!(b.taubin_sweep);
-            }
-            print_json(&v)
         }
         Some(Command::Register {
             scan,
@@ -734,7 +744,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             print_json(&serde_json::to_value(report.summary())?)
         }
-        Some(Command::View(args)) => view(args),
+        Some(Command::View(args)) => return Ok(Next::View(Box::new(args))),
         Some(Command::Review {
             dir,
             landmarks_dir,
@@ -765,17 +775,20 @@ pub fn run(cli: Cli) -> Result<()> {
             session,
             screenshot,
             ..
-        }) => view(ViewArgs {
-            review: Some(dir),
-            landmarks_dir,
-            session,
-            screenshot,
-            width: 1280,
-            height: 800,
-            ..ViewArgs::default()
-        }),
-        None => view(cli.view),
-    }
+        }) => {
+            return Ok(Next::View(Box::new(ViewArgs {
+                review: Some(dir),
+                landmarks_dir,
+                session,
+                screenshot,
+                width: 1280,
+                height: 800,
+                ..ViewArgs::default()
+            })));
+        }
+        None => return Ok(Next::View(Box::new(cli.view))),
+    };
+    done.map(|()| Next::Done)
 }
 
 /// `facesynth info FILE` as a JSON value.
@@ -851,14 +864,4 @@ pub fn register(
 fn print_json(value: &serde_json::Value) -> Result<()> {
     println!("{}", serde_json::to_string_pretty(value)?);
     Ok(())
-}
-
-#[cfg(feature = "gui")]
-fn view(args: ViewArgs) -> Result<()> {
-    crate::app::run(args)
-}
-
-#[cfg(not(feature = "gui"))]
-fn view(_args: ViewArgs) -> Result<()> {
-    anyhow::bail!("this facesynth was built without the `gui` feature; the editor is unavailable")
 }

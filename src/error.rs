@@ -166,15 +166,15 @@ pub enum FemError {
         element: usize,
         min_jacobian_det: f64,
     },
-    /// An element too distorted to trust (scaled Jacobian at or below
-    /// [`crate::fem::layers::MIN_SCALED_JACOBIAN`]) that local thinning could not mend.
+    /// An element too distorted to trust (scaled Jacobian at or below `limit`, the FEM's
+    /// `layers::MIN_SCALED_JACOBIAN`) that local thinning could not mend.
     #[error(
-        "element {element} is too distorted (scaled Jacobian {scaled_jacobian:.3}, at most {}); the surface there is creased or its quads skewed",
-        crate::fem::layers::MIN_SCALED_JACOBIAN
+        "element {element} is too distorted (scaled Jacobian {scaled_jacobian:.3}, at most {limit}); the surface there is creased or its quads skewed"
     )]
     PoorElement {
         element: usize,
         scaled_jacobian: f64,
+        limit: f64,
     },
     /// The sparse Cholesky factorization failed (matrix not positive definite).
     #[error("stiffness matrix is not positive definite: {0}")]

@@ -46,6 +46,11 @@ impl AutosaveState {
         }
     }
 
+    /// Puts this state back into `doc` (see [`Document::restore_saved`]); the jobs to run.
+    pub fn restore(&self, doc: &mut Document) -> Vec<super::jobs::Job> {
+        doc.restore_saved(self.scan.as_deref(), self.edits.clone(), self.denoise)
+    }
+
     pub fn to_ron(&self) -> String {
         ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::new()).unwrap_or_default() + "\n"
     }

@@ -3,17 +3,17 @@
 //! changes and worker [`Job`]s, [`Document::receive`] takes the worker's results. So the whole
 //! edit logic (loading, landmark moves, undo, registration) is testable without a window.
 
+use super::jobs::{
+    DenoiseState, DetectionState, FemState, FitState, Job, JobResult, RegistrationState,
+    ReviewProgress, ScanState,
+};
 use super::undo::History;
-use super::worker::{Job, JobResult};
-use crate::denoise::{DenoiseParams, DenoiseReport};
+use crate::denoise::DenoiseParams;
 use crate::feature_points::{FeaturePoint, Landmarks};
+use crate::fem::FemParams;
 use crate::fem::expressions::{Expression, ExpressionSet};
-use crate::fem::layers::ElementQuality;
-use crate::fem::muscles::{Muscle, MuscleSet};
-use crate::fem::{FemParams, HexMesh, Timings};
+use crate::fem::muscles::MuscleSet;
 use crate::generic_face::GenericFace;
-use crate::mesh::FaceCounts;
-use crate::registration::RegistrationResult;
 use crate::{Mesh, io};
 use glam::DVec3;
 use std::collections::{BTreeMap, BTreeSet};
@@ -25,7 +25,7 @@ mod receive;
 mod review;
 mod state;
 
-pub use review::{Review, ReviewProgress};
+pub use review::Review;
 pub use state::*;
 
 /// What a panel or the command line asks the document to do.
@@ -277,15 +277,20 @@ impl Document {
         self.saved = self.edits.clone();
     }
 
-    /// Puts an autosave back: re-opens its scan (the edits follow once it has loaded) or, with
-    /// no scan, restores the edits at once. The restored edits count as unsaved.
-    pub fn restore_autosave(&mut self, state: &super::autosave::AutosaveState) -> Vec<Job> {
-        let edits = state.edits.clone();
-        match &state.scan {
+    /// Puts a saved state (an autosave) back: re-opens `scan` (the edits follow once it has
+    /// loaded, denoised with `denoise` if given) or, with no scan, restores the edits at once.
+    /// The restored edits count as unsaved.
+    pub fn restore_saved(
+        &mut self,
+        scan: Option<&std::path::Path>,
+        edits: Edits,
+        denoise: Option<DenoiseParams>,
+    ) -> Vec<Job> {
+        match scan {
             Some(path) => {
                 self.pending_restore = Some(edits);
-                self.pending_denoise = state.denoise;
-                self.apply(Command::Open(Some(path.clone())))
+                self.pending_denoise = denoise;
+                self.apply(Command::Open(Some(path.to_path_buf())))
             }
             None => {
                 let mut jobs = self.apply(Command::Open(None));

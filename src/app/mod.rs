@@ -4,6 +4,7 @@
 
 pub mod autosave;
 pub mod document;
+pub mod jobs;
 mod measure;
 mod panels;
 pub mod session;
@@ -621,7 +622,7 @@ impl EditorApp {
             ));
             ui.horizontal(|ui| {
                 if ui.button("Restore").clicked() {
-                    for job in self.doc.restore_autosave(state) {
+                    for job in state.restore(&mut self.doc) {
                         self.worker.send(job);
                     }
                     if let Some(p) = &state.scan {
@@ -691,11 +692,7 @@ fn save_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<()> {
     let bytes: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
     let buffer = image::RgbaImage::from_raw(w as u32, h as u32, bytes)
         .ok_or_else(|| anyhow!("{}: screenshot has the wrong size", path.display()))?;
-    let mut png = Vec::new();
-    buffer
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
-    crate::io::write_atomic(path, |w| w.write_all(&png))?;
+    crate::io::write_png(path, &buffer)?;
     Ok(())
 }
 

@@ -42,7 +42,7 @@ struct Underlay {
 /// The part of `scan` the FEM `face` does not hide, clustered for display (see
 /// [`UNDERLAY_HIDDEN_MM`], [`UNDERLAY_CELL_EDGES`]).
 fn underlay_mesh(scan: &Mesh, face: &Mesh) -> Mesh {
-    let index = crate::registration::SurfaceIndex::new(face, 4.0);
+    let index = crate::mesh::SurfaceIndex::new(face, 4.0);
     let covered: Vec<bool> = scan
         .positions_mm
         .iter()
@@ -325,7 +325,7 @@ fn build_scene(app: &EditorApp) -> SceneCache {
 
 /// The cut-away plane's x (mm), relative to the nose tip so the same cut works in the generic
 /// and the scan frames.
-fn cut_plane_x(app: &EditorApp, fem: &crate::app::document::FemState) -> f32 {
+fn cut_plane_x(app: &EditorApp, fem: &crate::app::jobs::FemState) -> f32 {
     let nose = app
         .doc
         .generic
@@ -336,7 +336,7 @@ fn cut_plane_x(app: &EditorApp, fem: &crate::app::document::FemState) -> f32 {
 /// Arrows from each muscle's insertion towards its origin; length ∝ force × activation (a
 /// short stub for inactive muscles so every muscle can be found).
 fn muscle_arrows(
-    fem: &crate::app::document::FemState,
+    fem: &crate::app::jobs::FemState,
     activations: &std::collections::BTreeMap<String, f64>,
     u: &[glam::DVec3],
 ) -> Vec<([f32; 3], [f32; 3], [f32; 4])> {

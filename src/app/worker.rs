@@ -2,8 +2,9 @@
 //! worker asks egui for a repaint so the UI thread picks them up on its next frame. The jobs
 //! themselves ([`run_job`]) are plain functions, tested without a window.
 
-use super::document::{
-    DenoiseState, DetectionState, FemState, FitState, RegistrationState, SPIKE_MM, ScanState,
+use super::jobs::{
+    DenoiseState, DetectionState, FemState, FitState, Job, JobResult, RegistrationState, SPIKE_MM,
+    ScanState,
 };
 use crate::denoise::DenoiseParams;
 use crate::feature_points::FeaturePoint;
@@ -12,64 +13,14 @@ use crate::fem::expressions::ExpressionSet;
 use crate::fem::muscles::MuscleSet;
 use crate::fem::{FaceModel, FemParams};
 use crate::generic_face::GenericFace;
-use crate::registration::{RegistrationParams, SurfaceIndex};
+use crate::mesh::SurfaceIndex;
+use crate::registration::RegistrationParams;
 use crate::{Mesh, io};
 use eframe::egui;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
-
-pub enum Job {
-    Load(PathBuf),
-    Denoise {
-        mesh: Arc<Mesh>,
-        params: DenoiseParams,
-    },
-    DetectLandmarks {
-        mesh: Arc<Mesh>,
-    },
-    Register {
-        generic: Arc<GenericFace>,
-        scan: Arc<Mesh>,
-        landmarks: Box<Landmarks>,
-        /// The cheek and forehead points are the detector's (see
-        /// `pipeline::registration_points`).
-        borders_detected: bool,
-    },
-    /// Fit the muscle and jaw activations to an expression scan with the current FEM model.
-    FitExpression {
-        scan: PathBuf,
-        /// The (denoised) neutral scan the model was registered to, if any.
-        neutral: Option<Arc<Mesh>>,
-        presets: ExpressionSet,
-    },
-    /// Build the review queue of a folder (detection where the cache has none).
-    Review {
-        dir: PathBuf,
-        landmarks_dir: Option<PathBuf>,
-        progress: Arc<super::document::ReviewProgress>,
-    },
-    /// Bring the FEM model up to date with these inputs (build, refactor or re-solve, as
-    /// little as the change needs) and return its basis.
-    Fem {
-        surface: Arc<Mesh>,
-        surface_id: u64,
-        feature_vertices: [u32; FeaturePoint::COUNT],
-        params: FemParams,
-        muscles: Box<MuscleSet>,
-    },
-}
-
-pub enum JobResult {
-    Loaded(Result<Box<ScanState>, String>),
-    Denoised(Result<Box<DenoiseState>, String>),
-    Registered(Result<Box<RegistrationState>, String>),
-    Fem(Result<Box<FemState>, String>),
-    Detected(Result<Box<DetectionState>, String>),
-    Fitted(Result<Box<FitState>, String>),
-    Reviewed(Result<Box<crate::pipeline::ReviewQueue>, String>),
-}
 
 pub struct Worker {
     jobs: Sender<Job>,

@@ -94,7 +94,7 @@ pub fn synthesize(
         if png {
             let magnitude: Vec<f64> = u.iter().map(|d| d.length()).collect();
             let img = crate::fem::picture::render_front(&deformed, &magnitude, 10.0, 480);
-            crate::fem::picture::save_png(&out.join(format!("{}.png", e.name)), &img)?;
+            crate::io::write_png(&out.join(format!("{}.png", e.name)), &img)?;
         }
         report.insert(
             e.name.clone(),
@@ -403,7 +403,7 @@ pub fn fit_expression(
             let magnitude: Vec<f64> = r.iter().map(|d| d.map_or(0.0, f64::abs)).collect();
             let img =
                 crate::fem::picture::render_front(&fitted, &magnitude, RESIDUAL_PNG_MAX_MM, 480);
-            crate::fem::picture::save_png(path, &img)?;
+            crate::io::write_png(path, &img)?;
         }
         let inside: Vec<f64> = r.iter().flatten().copied().collect();
         let rms = (inside.iter().map(|d| d * d).sum::<f64>() / inside.len().max(1) as f64).sqrt();

@@ -25,8 +25,8 @@
 
 use super::{DenoiseMethod, DenoiseParams, DenoiseReport, FilterNeighbours, STILL_MM, denoise};
 use crate::ground_truth::{ScanTruth, TruthGrid};
+use crate::mesh::SurfaceIndex;
 use crate::mesh::{Mesh, Topology};
-use crate::registration::SurfaceIndex;
 use crate::{Error, Result, io};
 use glam::DVec3;
 use serde::Serialize;

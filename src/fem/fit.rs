@@ -30,10 +30,11 @@
 //! mouth on the subject's right.
 
 use super::FaceModel;
+use super::anchor::FaceFrame;
 use super::expressions::ExpressionSet;
-use super::muscles::FaceFrame;
 use crate::feature_points::{FeaturePoint, Landmarks};
-use crate::registration::{SurfaceIndex, horn_absolute_orientation};
+use crate::mesh::SurfaceIndex;
+use crate::registration::horn_absolute_orientation;
 use crate::{FemError, Mesh, Result};
 use glam::DVec3;
 

@@ -32,7 +32,7 @@
 //! the jaw becomes a ramp a few rings wide instead of a shear within one element. A fixed node
 //! follows the mandible with the weight of its surface vertex; free nodes are solved.
 
-use super::muscles::{Anchor, FaceFrame, snap_to_skin};
+use super::anchor::{Anchor, FaceFrame};
 use super::{FaceModel, HexMesh};
 use crate::feature_points::FeaturePoint;
 use crate::mesh::Topology;
@@ -99,10 +99,7 @@ impl JawDef {
             |p: FeaturePoint| surface.positions_mm[model.feature_vertices[p.index()] as usize];
         let frame = FaceFrame::new(position)?;
         self.check().map_err(FemError::Definition)?;
-        let point = FeaturePoint::from_name(&self.hinge.point).expect("checked");
-        let o = self.hinge.offset;
-        let target = position(point) + frame.offset_mm([o[0], o[1], 0.0]);
-        let hinge_mm = snap_to_skin(surface, &frame, target) + frame.offset_mm([0.0, 0.0, o[2]]);
+        let hinge_mm = self.hinge.place(surface, &frame, position, false);
         let mouth = (position(FeaturePoint::MouthCornerLeft)
             + position(FeaturePoint::MouthCornerRight))
             * 0.5;

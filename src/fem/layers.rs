@@ -187,6 +187,7 @@ pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, E
             FemError::PoorElement {
                 element,
                 scaled_jacobian: sj,
+                limit: MIN_SCALED_JACOBIAN,
             }
         } else {
             FemError::InvertedElement {

@@ -17,6 +17,7 @@
 //! 13 feature-point vertex ids, then factor, compute the basis, change a modulus (numeric
 //! refactor only), re-solve one muscle, and combine activations.
 
+pub mod anchor;
 pub mod assembly;
 pub mod expressions;
 pub mod fit;

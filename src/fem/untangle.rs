@@ -26,7 +26,7 @@ const PASSES: usize = 12;
 /// over the target, so the step does not stop just at it).
 const GRADIENT_TARGET: f64 = 0.35;
 
-/// Moves the inner nodes (layers 1 and 2 of [`super::layers`]' numbering) of every element
+/// Moves the inner nodes (node layers 1 and 2: under the skin and the cranium) of every element
 /// whose scaled Jacobian is at or below `target` (see the module docs). `topology` is the
 /// surface's, `normals` its unit vertex normals; `faces` the surface face count (element `f`
 /// is the skin element of face `f`, element `faces + f` the fat one). Returns how many nodes

@@ -277,6 +277,21 @@ pub fn write_atomic(
     })
 }
 
+/// Writes a picture as PNG atomically (headless pictures, plots, editor screenshots).
+pub fn write_png<P>(path: &Path, img: &image::ImageBuffer<P, Vec<P::Subpixel>>) -> Result<()>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+{
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::invalid(path, e.to_string()))?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
 /// Writes a string atomically (JSON reports, RON presets, landmark files).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<()> {
     write_atomic(path, |w| w.write_all(text.as_bytes()))

@@ -40,7 +40,8 @@
 
 use crate::generic_face;
 use crate::mesh::Mesh;
-use crate::registration::{SurfaceIndex, horn_absolute_orientation};
+use crate::mesh::SurfaceIndex;
+use crate::registration::horn_absolute_orientation;
 use crate::{Error, Result};
 use glam::{DMat3, DVec2, DVec3};
 use std::sync::OnceLock;

@@ -4,7 +4,7 @@
 //! dot (`facesynth landmarks SCAN --png OUT.png`). Headless: no GPU, the `image` crate only.
 
 use crate::feature_points::Landmarks;
-use crate::mesh::Mesh;
+use crate::mesh::{FrontView, Mesh};
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -28,63 +28,25 @@ pub fn write_png(
             mesh.vertex_count()
         )));
     }
-    let s = PIXELS_PER_MM;
-    let w = (((hi.x - lo.x) * s) as u32 + 1).min(4000);
-    let h = (((hi.y - lo.y) * s) as u32 + 1).min(4000);
+    let view = FrontView::at_scale(lo, hi, PIXELS_PER_MM, 4000);
+    let (w, h) = (view.width_px, view.height_px);
     let mut img = image::RgbImage::from_pixel(w, h, image::Rgb([30, 30, 30]));
-    let mut depth = vec![f64::MIN; (w * h) as usize];
-    let to_px = |x: f64, y: f64| ((x - lo.x) * s, (hi.y - y) * s);
-    for t in mesh.triangles() {
-        let p = t.map(|v| mesh.positions_mm[v as usize]);
-        let q = p.map(|p| to_px(p.x, p.y));
-        let area = (q[1].0 - q[0].0) * (q[2].1 - q[0].1) - (q[2].0 - q[0].0) * (q[1].1 - q[0].1);
-        if area.abs() < 1e-12 {
-            continue;
-        }
-        let x0 = q
-            .iter()
-            .map(|a| a.0)
-            .fold(f64::MAX, f64::min)
-            .floor()
-            .max(0.0) as u32;
-        let x1 = (q.iter().map(|a| a.0).fold(f64::MIN, f64::max).ceil() as u32).min(w - 1);
-        let y0 = q
-            .iter()
-            .map(|a| a.1)
-            .fold(f64::MAX, f64::min)
-            .floor()
-            .max(0.0) as u32;
-        let y1 = (q.iter().map(|a| a.1).fold(f64::MIN, f64::max).ceil() as u32).min(h - 1);
-        for py in y0..=y1 {
-            for px in x0..=x1 {
-                let (fx, fy) = (px as f64 + 0.5, py as f64 + 0.5);
-                let b1 =
-                    ((fx - q[0].0) * (q[2].1 - q[0].1) - (q[2].0 - q[0].0) * (fy - q[0].1)) / area;
-                let b2 =
-                    ((q[1].0 - q[0].0) * (fy - q[0].1) - (fx - q[0].0) * (q[1].1 - q[0].1)) / area;
-                let b0 = 1.0 - b1 - b2;
-                if b0 < -1e-9 || b1 < -1e-9 || b2 < -1e-9 {
-                    continue;
-                }
-                let z = b0 * p[0].z + b1 * p[1].z + b2 * p[2].z;
-                let k = (py * w + px) as usize;
-                if z <= depth[k] {
-                    continue;
-                }
-                depth[k] = z;
-                let [a, b, c] = t.map(|v| v as usize);
-                let si = b0 * shape_index[a] + b1 * shape_index[b] + b2 * shape_index[c];
-                let nz = (b0 * mesh.normals[a].z + b1 * mesh.normals[b].z + b2 * mesh.normals[c].z)
-                    .clamp(0.0, 1.0);
-                let shade = 0.35 + 0.65 * nz;
-                let col = colour(si).map(|c| (c * shade * 255.0) as u8);
-                img.put_pixel(px, py, image::Rgb(col));
-            }
-        }
-    }
+    view.rasterise(mesh, |x, y, v, b| {
+        let si = b[0] * shape_index[v[0]] + b[1] * shape_index[v[1]] + b[2] * shape_index[v[2]];
+        let nz = (b[0] * mesh.normals[v[0]].z
+            + b[1] * mesh.normals[v[1]].z
+            + b[2] * mesh.normals[v[2]].z)
+            .clamp(0.0, 1.0);
+        let shade = 0.35 + 0.65 * nz;
+        img.put_pixel(
+            x,
+            y,
+            image::Rgb(colour(si).map(|c| (c * shade * 255.0) as u8)),
+        );
+    });
     if let Some(lm) = landmarks {
         for (_, x) in lm.iter() {
-            let (cx, cy) = to_px(x.x, x.y);
+            let (cx, cy) = view.to_px(x);
             for dy in -6i32..=6 {
                 for dx in -6i32..=6 {
                     let r2 = dx * dx + dy * dy;
@@ -103,7 +65,7 @@ pub fn write_png(
         }
     }
     // Through the atomic writer like every other output, so a killed run leaves no half PNG.
-    crate::fem::picture::save_png(path, &img)
+    crate::io::write_png(path, &img)
 }
 
 /// Blue (0) → green (0.5) → red (1).

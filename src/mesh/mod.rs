@@ -9,9 +9,12 @@ mod normals;
 pub mod pick;
 /// Vertex-clustering simplification (the viewport's light copy of a dense scan).
 pub mod simplify;
+/// Closest points, ray–triangle, headless front-view pictures.
+pub mod spatial;
 mod topology;
 
 pub use normals::{face_normal, vertex_normals};
+pub use spatial::{FrontView, SurfaceIndex, closest_point_on_triangle, ray_triangle};
 pub use topology::Topology;
 
 use glam::DVec3;

@@ -31,7 +31,10 @@ pub fn ray_hit(mesh: &Mesh, origin: DVec3, dir: DVec3) -> Option<RayHit> {
                 p[poly[k] as usize],
                 p[poly[k + 1] as usize],
             );
-            let Some(t) = ray_triangle(origin, dir, a, b, c) else {
+            let Some(t) = super::ray_triangle(origin, dir, a, b, c)
+                .map(|(t, _)| t)
+                .filter(|&t| t > 1e-9)
+            else {
                 continue;
             };
             if best.is_some_and(|h| h.distance_mm <= t) {
@@ -55,30 +58,6 @@ pub fn ray_hit(mesh: &Mesh, origin: DVec3, dir: DVec3) -> Option<RayHit> {
         }
     }
     best
-}
-
-/// Möller–Trumbore: distance along `dir` to triangle `abc`, if hit in front of the origin.
-fn ray_triangle(origin: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let pv = dir.cross(e2);
-    let det = e1.dot(pv);
-    if det.abs() < 1e-12 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let tv = origin - a;
-    let u = tv.dot(pv) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let qv = tv.cross(e1);
-    let v = dir.dot(qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(qv) * inv;
-    (t > 1e-9).then_some(t)
 }
 
 #[cfg(test)]

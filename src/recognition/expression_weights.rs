@@ -26,8 +26,8 @@
 //! choice of `s`: `docs/measurements.md`, "Recognition protocol" and "Figures moved from the
 //! code's comments".
 
-use super::protocol::Sample;
 use super::range_image::{RangeImageParams, neighbourhood_median};
+use super::sample::Sample;
 use crate::{Error, Result};
 use serde::Serialize;
 use std::collections::HashMap;

@@ -16,8 +16,7 @@ use crate::{Error, Result};
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
-use faer::{Mat, MatRef, Par, Side};
-use nalgebra::{DMatrix, DVector};
+use faer::{Col, Mat, MatRef, Par, Side};
 use serde::Serialize;
 
 /// How the projection was built.
@@ -105,9 +104,9 @@ impl Default for FisherParams {
 #[derive(Debug, Clone)]
 pub struct FisherModel {
     /// Ψ, the training mean (length d).
-    pub mean: DVector<f64>,
+    pub mean: Vec<f64>,
     /// U_opt (d × output dims).
-    pub basis: DMatrix<f64>,
+    pub basis: Mat<f64>,
     pub method: Method,
     /// Dimensions kept by the PCA step (M − c, or M − 1 for Eigenfaces; less if rank-deficient).
     pub pca_dims: usize,
@@ -161,8 +160,9 @@ impl FisherModel {
 
     /// Ω = (Γ − Ψ)ᵀ U_opt (eq. 9).
     pub fn project(&self, sample: &[f64]) -> Vec<f64> {
-        let centred = DVector::from_column_slice(sample) - &self.mean;
-        self.basis.tr_mul(&centred).as_slice().to_vec()
+        let centred = Col::<f64>::from_fn(self.mean.len(), |i| sample[i] - self.mean[i]);
+        let omega = self.basis.transpose() * &centred;
+        omega.iter().copied().collect()
     }
 }
 
@@ -173,10 +173,11 @@ impl FisherModel {
 /// G = E Λ Eᵀ and V = E_k Λ_k^{-1/2}, the samples in PCA coordinates are UᵀA = Λ_k^{1/2} E_kᵀ,
 /// a deviation δ is Uᵀδ = Vᵀ(Aᵀδ), and the final basis U W is A (V W). On the 61-subject
 /// augmented gallery (d = 9,891, M = 1,159) that avoids two d × M × k products (~13 GFLOP
-/// each). The dense algebra is faer's (blocked, both cores): nalgebra's eigen decomposition
-/// of G took 2.2 s against faer's 0.34–0.41 s here, and `tr_mul` with a tall matrix 10 s.
+/// each). The dense algebra is faer's throughout (blocked, both cores): nalgebra's eigen
+/// decomposition of G took 2.2 s against faer's 0.34–0.41 s here, and `tr_mul` with a tall
+/// matrix 10 s.
 struct Pca {
-    mean: DVector<f64>,
+    mean: Vec<f64>,
     /// Centred samples A (d × M).
     a: Mat<f64>,
     /// V = E_k Λ_k^{-1/2} (M × k): U = A V.
@@ -225,11 +226,11 @@ impl Pca {
             .iter()
             .map(|l| ids.binary_search(l).unwrap())
             .collect();
-        let mut mean = DVector::<f64>::zeros(d);
+        let mut mean = vec![0.0; d];
         for s in samples {
-            mean += DVector::from_column_slice(s.as_ref());
+            mean.iter_mut().zip(s.as_ref()).for_each(|(a, x)| *a += x);
         }
-        mean /= m as f64;
+        mean.iter_mut().for_each(|a| *a /= m as f64);
         let a = Mat::<f64>::from_fn(d, m, |i, j| samples[j].as_ref()[i] - mean[i]);
         let method = if m > c {
             Method::Fisherfaces
@@ -273,10 +274,9 @@ impl Pca {
     }
 
     /// A (V W): the d × out basis for PCA-space directions W (k × out).
-    fn basis(&self, w: MatRef<'_, f64>) -> DMatrix<f64> {
+    fn basis(&self, w: MatRef<'_, f64>) -> Mat<f64> {
         let vw = &self.v * w;
-        let basis = &self.a * vw;
-        DMatrix::from_fn(basis.nrows(), basis.ncols(), |i, j| basis[(i, j)])
+        &self.a * vw
     }
 
     fn lda(&self, deviations: &[Vec<f64>], params: &FisherParams) -> Result<FisherModel> {
@@ -291,7 +291,7 @@ impl Pca {
                 "within-class deviations must be finite vectors of the samples' length",
             ));
         }
-        let model = |basis: DMatrix<f64>| FisherModel {
+        let model = |basis: Mat<f64>| FisherModel {
             mean: self.mean.clone(),
             basis,
             method: self.method,
@@ -452,7 +452,7 @@ mod tests {
         let model = FisherModel::train(&gx, &gl, &FisherParams::default()).unwrap();
         let proj: Vec<Vec<f64>> = gx.iter().map(|x| model.project(x)).collect();
         let k = model.dims();
-        let mut sw = DMatrix::<f64>::zeros(k, k);
+        let mut sw = Mat::<f64>::zeros(k, k);
         for cl in 0..5 {
             let members: Vec<&Vec<f64>> =
                 (0..30).filter(|&s| s / 6 == cl).map(|s| &proj[s]).collect();
@@ -460,11 +460,12 @@ mod tests {
                 .map(|i| members.iter().map(|p| p[i]).sum::<f64>() / members.len() as f64)
                 .collect();
             for p in members {
-                let dv = DVector::from_iterator(k, (0..k).map(|i| p[i] - mu[i]));
+                let dv = Col::<f64>::from_fn(k, |i| p[i] - mu[i]);
                 sw += &dv * dv.transpose();
             }
         }
-        assert!((sw - DMatrix::identity(k, k)).abs().max() < 1e-6);
+        let off = &sw - Mat::<f64>::identity(k, k);
+        assert!(off.norm_max() < 1e-6, "{}", off.norm_max());
     }
 
     #[test]
@@ -475,7 +476,7 @@ mod tests {
         assert_eq!(model.dims(), 5);
         // PCA basis is orthonormal.
         let g = model.basis.transpose() * &model.basis;
-        assert!((g - DMatrix::identity(5, 5)).abs().max() < 1e-9);
+        assert!((&g - Mat::<f64>::identity(5, 5)).norm_max() < 1e-9);
         // A training sample is its own nearest neighbour.
         for (x, &l) in gx.iter().zip(&gl) {
             assert_eq!(nearest(&model, &gx, &gl, x, Metric::Euclidean), l);

@@ -14,12 +14,14 @@
 //! * [`protocol`] — the GavabDB protocol behind `facesynth evaluate`.
 
 pub mod cmc;
+pub mod dataset;
 pub mod expression_weights;
 pub mod fisherfaces;
 pub mod plot;
 pub mod pose;
 pub mod protocol;
 pub mod range_image;
+pub mod sample;
 
 pub use expression_weights::ExpressionWeightParams;
 pub use fisherfaces::{FisherModel, FisherParams, Method, Metric};

@@ -147,7 +147,7 @@ pub fn write_cmc_png(path: &Path, title: &str, curves: &[Curve], size: (u32, u32
     let buf = render_cmc(title, curves, size)?;
     let img = image::RgbImage::from_raw(size.0, size.1, buf)
         .ok_or_else(|| Error::algorithm("plot", "buffer size mismatch"))?;
-    crate::fem::picture::save_png(path, &img)
+    crate::io::write_png(path, &img)
 }
 
 #[cfg(test)]

@@ -134,34 +134,6 @@ impl CylinderProjector {
     }
 }
 
-/// Möller–Trumbore, both sides: (distance along `dir`, barycentric) or `None`.
-fn ray_triangle(o: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<(f64, [f64; 3])> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let p = dir.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-14 * e1.length_squared().max(e2.length_squared()) {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - a;
-    let u = s.dot(p) * inv;
-    const EPS: f64 = 1e-9;
-    if !(-EPS..=1.0 + EPS).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = dir.dot(q) * inv;
-    if v < -EPS || u + v > 1.0 + EPS {
-        return None;
-    }
-    let t = e2.dot(q) * inv;
-    let (u, v) = (u.clamp(0.0, 1.0), v.clamp(0.0, 1.0));
-    let w = (1.0 - u - v).max(0.0);
-    let sum = u + v + w;
-    Some((t, [w / sum, u / sum, v / sum]))
-}
-
 /// A uniform 2D grid of item ids by bounding box (CSR storage).
 #[derive(Debug, Clone)]
 struct Grid2 {

@@ -44,7 +44,7 @@
 
 use crate::feature_points::{FeaturePoint, Landmarks};
 use crate::generic_face::GenericFace;
-use crate::mesh::{Mesh, Topology};
+use crate::mesh::{Mesh, SurfaceIndex, Topology, ray_triangle};
 use crate::{Error, Result};
 use glam::{DMat3, DQuat, DVec2, DVec3};
 use serde::Serialize;
@@ -55,7 +55,6 @@ use std::time::Instant;
 mod cylinder;
 mod eval;
 mod horn;
-mod surface_index;
 #[cfg(test)]
 mod tests;
 mod warp;
@@ -66,7 +65,6 @@ pub use eval::{
     TruthPoints, evaluate, truth_points,
 };
 pub use horn::horn_absolute_orientation;
-pub use surface_index::{SurfaceIndex, closest_point_on_triangle};
 use warp::barycentric2;
 pub use warp::{PlanarWarp, delaunay};
 

@@ -3,6 +3,7 @@
 
 use super::warp::cross2;
 use super::*;
+use crate::mesh::closest_point_on_triangle;
 
 /// Deterministic pseudo-random numbers in [-1, 1) (xorshift).
 struct Rng(u64);

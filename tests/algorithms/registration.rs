@@ -417,7 +417,7 @@ fn debug_one() {
     let generic = generic();
     let r = registration::register(&generic, &scan, &truth.landmarks, &Default::default()).unwrap();
     println!("{}", r.report_json());
-    let idx = registration::SurfaceIndex::new(&scan, 4.0);
+    let idx = facesynth::mesh::SurfaceIndex::new(&scan, 4.0);
     let un: std::collections::HashSet<u32> = r.unmatched_vertices.iter().copied().collect();
     for (v, p) in r.mesh.positions_mm.iter().enumerate() {
         let d = idx.distance(*p, 200.0);
@@ -520,7 +520,7 @@ fn closest_point_index_handles_a_far_away_triangle_and_far_queries() {
     positions.extend([far, far + DVec3::X, far + DVec3::Y]);
     faces.push(vec![k, k + 1, k + 2]);
     let mesh = Mesh::from_faces(positions, faces);
-    let index = registration::SurfaceIndex::new(&mesh, 4.0);
+    let index = facesynth::mesh::SurfaceIndex::new(&mesh, 4.0);
     // Above the grid patch: straight down onto it.
     let (d, q) = index.closest(DVec3::new(5.3, 7.6, 2.0), 10.0).unwrap();
     assert!((d - 2.0).abs() < 1e-9 && (q - DVec3::new(5.3, 7.6, 0.0)).length() < 1e-9);

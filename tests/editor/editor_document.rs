@@ -742,7 +742,7 @@ fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
     // A fresh editor restores it: the scan is read again and the edits come back on it.
     let mut fresh = Document::new(generic_face::build());
     let mut worker = WorkerState::default();
-    let mut jobs: std::collections::VecDeque<_> = fresh.restore_autosave(&back).into();
+    let mut jobs: std::collections::VecDeque<_> = back.restore(&mut fresh).into();
     while let Some(job) = jobs.pop_front() {
         jobs.extend(fresh.receive(worker.run(job)));
     }

@@ -291,7 +291,7 @@ fn an_open_jaw_pushes_back_only_the_scan_inside_the_opened_lips() {
         sheet.faces.iter().map(|f| f.to_vec()).collect::<Vec<_>>(),
     );
     let before = scan.positions_mm.clone();
-    let frame = facesynth::fem::muscles::FaceFrame::new(at).unwrap();
+    let frame = facesynth::fem::anchor::FaceFrame::new(at).unwrap();
     let params = pipeline::CavityParams::default();
     pipeline::mouth_cavity(&mut scan, &model, &u, deg, &params).unwrap();
     let depth = params.depth_mm_per_deg * deg;

@@ -4,24 +4,6 @@
 
 use super::*;
 use crate::pipeline::{LandmarkSource, ReviewQueue};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-/// How far the folder's detection has got (shared with the worker).
-#[derive(Debug, Default)]
-pub struct ReviewProgress {
-    pub done: AtomicUsize,
-    pub total: AtomicUsize,
-}
-
-impl ReviewProgress {
-    /// (done, total).
-    pub fn get(&self) -> (usize, usize) {
-        (
-            self.done.load(Ordering::Relaxed),
-            self.total.load(Ordering::Relaxed),
-        )
-    }
-}
 
 /// The queue and where the user is in it.
 #[derive(Debug, Clone)]

@@ -1,7 +1,8 @@
 //! Denoise panel (paper 2.1.1): method, k, w; run; before/after; moved vertices and spikes.
 
 use super::super::EditorApp;
-use super::super::document::{Command, SPIKE_MM};
+use super::super::document::Command;
+use super::super::jobs::SPIKE_MM;
 use super::figures_grid;
 use crate::denoise::DenoiseMethod;
 use crate::view_options::Overlay;

@@ -1,6 +1,8 @@
-//! Closest points on a scan surface: a uniform grid of triangles by bounding box.
+//! Shared geometry queries on a mesh: closest points on the surface (a uniform grid of
+//! triangles), the one ray–triangle test, and the one headless front-view rasteriser.
 
-use super::*;
+use super::Mesh;
+use glam::DVec3;
 
 /// Distances from points to a mesh surface (exact point-to-triangle), through a uniform 3D
 /// grid of triangles by bounding box.
@@ -205,4 +207,138 @@ pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec
     }
     let denom = 1.0 / (va + vb + vc);
     a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Möller–Trumbore ray–triangle intersection, both sides of the origin: (signed distance along
+/// `dir` in units of `|dir|`, barycentric weights of `a`, `b`, `c`) or `None`. Edges count as
+/// hits within 1e-9 (barycentric), so a ray through a shared edge hits one of its triangles.
+pub fn ray_triangle(o: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<(f64, [f64; 3])> {
+    let e1 = b - a;
+    let e2 = c - a;
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-14 * e1.length_squared().max(e2.length_squared()) {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    const EPS: f64 = 1e-9;
+    if !(-EPS..=1.0 + EPS).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv;
+    if v < -EPS || u + v > 1.0 + EPS {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    let (u, v) = (u.clamp(0.0, 1.0), v.clamp(0.0, 1.0));
+    let w = (1.0 - u - v).max(0.0);
+    let sum = u + v + w;
+    Some((t, [w / sum, u / sum, v / sum]))
+}
+
+/// An orthographic front view (along −z: x right, y up) of a box in mm, for headless pictures
+/// (`landmarks --png`, `synthesize --png`, `fit-expression --residual-png`). No GPU.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrontView {
+    /// Left (x) and top (y) of the picture, mm.
+    left_mm: f64,
+    top_mm: f64,
+    /// Pixels per mm.
+    scale: f64,
+    /// Blank border, pixels.
+    margin_px: f64,
+    pub width_px: u32,
+    pub height_px: u32,
+}
+
+impl FrontView {
+    /// The view of the box `lo`–`hi` (mm) `width_px` wide with a `margin_px` border; the height
+    /// follows from the box's aspect.
+    pub fn fit_width(lo: DVec3, hi: DVec3, width_px: u32, margin_px: f64) -> Self {
+        let scale = (width_px as f64 - 2.0 * margin_px) / (hi.x - lo.x).max(1e-9);
+        let height_px = ((hi.y - lo.y) * scale + 2.0 * margin_px).ceil().max(1.0) as u32;
+        FrontView {
+            left_mm: lo.x,
+            top_mm: hi.y,
+            scale,
+            margin_px,
+            width_px,
+            height_px,
+        }
+    }
+
+    /// The view of the box at `px_per_mm`, no border, at most `max_px` along either side.
+    pub fn at_scale(lo: DVec3, hi: DVec3, px_per_mm: f64, max_px: u32) -> Self {
+        let side = |extent: f64| ((extent * px_per_mm) as u32 + 1).min(max_px);
+        FrontView {
+            left_mm: lo.x,
+            top_mm: hi.y,
+            scale: px_per_mm,
+            margin_px: 0.0,
+            width_px: side(hi.x - lo.x),
+            height_px: side(hi.y - lo.y),
+        }
+    }
+
+    /// Picture coordinates (pixels, y down) of a point.
+    pub fn to_px(&self, p: DVec3) -> (f64, f64) {
+        (
+            (p.x - self.left_mm) * self.scale + self.margin_px,
+            (self.top_mm - p.y) * self.scale + self.margin_px,
+        )
+    }
+
+    /// Rasterises `mesh`'s triangles with a depth test (nearest = largest z): for each pixel
+    /// centre inside a triangle and nearer than what it holds, calls
+    /// `fragment(x, y, corners, barycentric)`. A pixel may be drawn more than once as nearer
+    /// triangles arrive; the last call is the visible surface.
+    pub fn rasterise(&self, mesh: &Mesh, mut fragment: impl FnMut(u32, u32, [usize; 3], [f64; 3])) {
+        let (w, h) = (self.width_px as usize, self.height_px as usize);
+        if w == 0 || h == 0 {
+            return;
+        }
+        let mut depth = vec![f64::NEG_INFINITY; w * h];
+        for tri in mesh.triangles() {
+            let v = tri.map(|i| i as usize);
+            let p = v.map(|i| mesh.positions_mm[i]);
+            let q = p.map(|p| self.to_px(p));
+            let area =
+                (q[1].0 - q[0].0) * (q[2].1 - q[0].1) - (q[2].0 - q[0].0) * (q[1].1 - q[0].1);
+            if !(area.abs() >= 1e-12) {
+                continue;
+            }
+            let lo = |k: fn(&(f64, f64)) -> f64| q.iter().map(k).fold(f64::INFINITY, f64::min);
+            let hi = |k: fn(&(f64, f64)) -> f64| q.iter().map(k).fold(f64::NEG_INFINITY, f64::max);
+            let (x0, x1) = (lo(|a| a.0), hi(|a| a.0));
+            let (y0, y1) = (lo(|a| a.1), hi(|a| a.1));
+            if x1 < 0.0 || y1 < 0.0 {
+                continue;
+            }
+            for y in (y0.floor().max(0.0) as usize)..=(y1.ceil() as usize).min(h - 1) {
+                for x in (x0.floor().max(0.0) as usize)..=(x1.ceil() as usize).min(w - 1) {
+                    let (fx, fy) = (x as f64 + 0.5, y as f64 + 0.5);
+                    let b1 = ((fx - q[0].0) * (q[2].1 - q[0].1)
+                        - (q[2].0 - q[0].0) * (fy - q[0].1))
+                        / area;
+                    let b2 = ((q[1].0 - q[0].0) * (fy - q[0].1)
+                        - (fx - q[0].0) * (q[1].1 - q[0].1))
+                        / area;
+                    let b0 = 1.0 - b1 - b2;
+                    if b0 < -1e-9 || b1 < -1e-9 || b2 < -1e-9 {
+                        continue;
+                    }
+                    let z = b0 * p[0].z + b1 * p[1].z + b2 * p[2].z;
+                    let k = y * w + x;
+                    if z <= depth[k] {
+                        continue;
+                    }
+                    depth[k] = z;
+                    fragment(x as u32, y as u32, v, [b0, b1, b2]);
+                }
+            }
+        }
+    }
 }
