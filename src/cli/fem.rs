@@ -311,6 +311,65 @@ pub fn bench_fem() -> Result<serde_json::Value> {
 /// The residual picture's colour scale: red at this distance to the scan, mm.
 const RESIDUAL_PNG_MAX_MM: f64 = 5.0;
 
+/// A neutral scan's solved FEM face and an expression scan of the same person, ready to fit
+/// or compare (`fit-expression`, `compare-expression`).
+pub struct ScanPair {
+    pub model: FaceModel,
+    pub repairs: crate::pipeline::FemRepairs,
+    /// The denoised neutral scan (where the registration reached it bounds the comparison).
+    pub neutral_scan: crate::Mesh,
+    /// The denoised expression scan.
+    pub scan: crate::Mesh,
+    /// Its feature points (they start the rigid alignment): read, or detected; `None` where
+    /// detection failed (the alignment then uses the stable regions alone).
+    pub scan_landmarks: Option<crate::Landmarks>,
+    pub neutral_source: crate::pipeline::LandmarkSource,
+    pub expression_source: Option<crate::pipeline::LandmarkSource>,
+}
+
+impl ScanPair {
+    pub fn prepare(
+        neutral: &Path,
+        expression: &Path,
+        landmarks: Option<&Path>,
+        expression_landmarks: Option<&Path>,
+        muscles: Option<&Path>,
+    ) -> Result<Self> {
+        let generic = generic_face::build();
+        let prepared = crate::pipeline::prepare_scan(neutral, landmarks, &generic)?;
+        let neutral_source = prepared.landmark_source();
+        let face = GenericFace {
+            mesh: prepared.registration.mesh,
+            feature_vertices: generic.feature_vertices,
+        };
+        let (model, repairs) = solved_model(&face, muscles)?;
+        let mut scan = io::read_mesh(expression)?;
+        denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
+        let (scan_landmarks, expression_source) = match expression_landmarks {
+            Some(path) => {
+                let file = crate::pipeline::LandmarkFile::read(path)?;
+                (Some(file.landmarks), Some(file.source))
+            }
+            None => {
+                let found = crate::landmarks::detect(&scan, &Default::default())
+                    .ok()
+                    .map(|r| r.landmarks);
+                let source = found.map(|_| crate::pipeline::LandmarkSource::Detected);
+                (found, source)
+            }
+        };
+        Ok(ScanPair {
+            model,
+            repairs,
+            neutral_scan: prepared.denoised,
+            scan,
+            scan_landmarks,
+            neutral_source,
+            expression_source,
+        })
+    }
+}
+
 /// Where `fit-expression` writes: the preset, and optionally the residual map.
 pub struct FitOutputs<'a> {
     pub preset: &'a Path,
@@ -331,32 +390,21 @@ pub fn fit_expression(
 ) -> Result<serde_json::Value> {
     use crate::fem::expressions::Expression;
     use crate::fem::fit::{FitParams, fit_expression};
-    let generic = generic_face::build();
-    let prepared = crate::pipeline::prepare_scan(neutral, landmarks, &generic)?;
-    let neutral_source = prepared.landmark_source();
-    let face = GenericFace {
-        mesh: prepared.registration.mesh,
-        feature_vertices: generic.feature_vertices,
-    };
-    let (model, repairs) = solved_model(&face, muscles)?;
-    let neutral_scan = prepared.denoised;
-    let mut scan = io::read_mesh(expression)?;
-    denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
-    // The expression scan's points start the rigid alignment: read, or detected (a failed
-    // detection leaves the alignment to the stable regions alone).
-    let (scan_landmarks, expression_source) = match expression_landmarks {
-        Some(path) => {
-            let file = crate::pipeline::LandmarkFile::read(path)?;
-            (Some(file.landmarks), Some(file.source))
-        }
-        None => {
-            let found = crate::landmarks::detect(&scan, &Default::default())
-                .ok()
-                .map(|r| r.landmarks);
-            let source = found.map(|_| crate::pipeline::LandmarkSource::Detected);
-            (found, source)
-        }
-    };
+    let ScanPair {
+        model,
+        repairs,
+        neutral_scan,
+        scan,
+        scan_landmarks,
+        neutral_source,
+        expression_source,
+    } = ScanPair::prepare(
+        neutral,
+        expression,
+        landmarks,
+        expression_landmarks,
+        muscles,
+    )?;
     let presets = ExpressionSet::builtin();
     let params = FitParams::default();
     let fit = fit_expression(

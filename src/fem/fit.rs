@@ -32,6 +32,7 @@
 use super::FaceModel;
 use super::anchor::FaceFrame;
 use super::expressions::ExpressionSet;
+use super::regions::Regions;
 use crate::feature_points::{FeaturePoint, Landmarks};
 use crate::mesh::SurfaceIndex;
 use crate::registration::horn_absolute_orientation;
@@ -125,30 +126,11 @@ pub const STABLE_PART_MAX_RMS_MM: f64 = 2.5;
 const ICP_TRIM_FACTOR: f64 = 2.5;
 const ICP_TRIM_MIN_MM: f64 = 1.0;
 
-/// Stable vertices for rigid alignment, by part: the upper forehead and the nose.
+/// Stable vertices for rigid alignment, by part: the upper forehead and the nose
+/// ([`Regions`]).
 fn stable_parts(model: &FaceModel) -> Result<(Vec<usize>, Vec<usize>)> {
-    let s = &model.surface;
-    let pos = |p: FeaturePoint| s.positions_mm[model.feature_vertices[p.index()] as usize];
-    let frame = FaceFrame::new(pos)?;
-    let nose = pos(FeaturePoint::NoseTip);
-    let mut forehead = Vec::new();
-    let mut nose_part = Vec::new();
-    for v in 0..s.vertex_count() {
-        let d = s.positions_mm[v] - nose;
-        if d.dot(frame.y) > 0.75 * frame.scale_y_mm {
-            forehead.push(v);
-        } else if d.length() < 0.3 * frame.scale_xz_mm {
-            nose_part.push(v);
-        }
-    }
-    Ok((forehead, nose_part))
-}
-
-/// Stable vertices for rigid alignment: the upper forehead and the nose.
-fn stable_vertices(model: &FaceModel) -> Result<Vec<usize>> {
-    let (mut forehead, nose) = stable_parts(model)?;
-    forehead.extend(nose);
-    Ok(forehead)
+    let r = Regions::of(&model.surface, &model.feature_vertices)?;
+    Ok((r.forehead, r.nose))
 }
 
 /// The RMS distance of `vertices` (positions `reference_mm`) to `scan`, over those within
@@ -214,7 +196,8 @@ pub fn align_scan(
         let t = horn_absolute_orientation(&from, &to, false)?;
         aligned = transform(&aligned, &t);
     }
-    let stable = stable_vertices(model)?;
+    let (mut stable, nose) = stable_parts(model)?;
+    stable.extend(nose);
     for _ in 0..params.icp_rounds {
         let index = SurfaceIndex::new(&aligned, 4.0);
         let mut pairs = Vec::new();
@@ -286,7 +269,80 @@ pub fn nnls(g: &[Vec<f64>], h: &[f64], ridge: &[f64]) -> Vec<f64> {
     a
 }
 
-fn rms_to_scan(
+/// The model vertices a fit or a comparison uses: free (not fixed), within
+/// [`FitParams::max_distance_mm`] of the aligned expression scan (`index`: holes and hair stay
+/// out) and, with the neutral scan's index, within [`FitParams::max_neutral_error_mm`] of it
+/// (where the registration reached the scan). Errors when fewer than 50 are left.
+pub(super) fn vertices_on_scans(
+    model: &FaceModel,
+    index: &SurfaceIndex,
+    neutral_index: Option<&SurfaceIndex>,
+    params: &FitParams,
+) -> Result<Vec<usize>> {
+    let fixed = model.fixed_nodes();
+    let vertices: Vec<usize> = (0..model.surface.vertex_count())
+        .filter(|&v| {
+            let p = model.surface.positions_mm[v];
+            !fixed[v]
+                && index.closest(p, params.max_distance_mm).is_some()
+                && neutral_index
+                    .is_none_or(|ni| ni.closest(p, params.max_neutral_error_mm).is_some())
+        })
+        .collect();
+    if vertices.len() < 50 {
+        return Err(FemError::Definition(format!(
+            "only {} model vertices lie within {} mm of the expression scan",
+            vertices.len(),
+            params.max_distance_mm
+        ))
+        .into());
+    }
+    Ok(vertices)
+}
+
+/// The rigid motion from `scan` to `aligned` and how well the stable parts of `surface_mm`
+/// (the model's surface, deformed by the expression estimate) agree with the aligned scan
+/// (`index`). Errors naming the parts farther than [`STABLE_PART_MAX_RMS_MM`].
+pub(super) fn check_alignment(
+    model: &FaceModel,
+    surface_mm: &[DVec3],
+    scan: &Mesh,
+    aligned: &Mesh,
+    index: &SurfaceIndex,
+    params: &FitParams,
+) -> Result<Alignment> {
+    let (forehead, nose) = stable_parts(model)?;
+    let (forehead_rms_mm, on_forehead) =
+        part_rms(surface_mm, &forehead, index, params.max_distance_mm);
+    let (nose_rms_mm, on_nose) = part_rms(surface_mm, &nose, index, params.max_distance_mm);
+    let bad: Vec<String> = [
+        ("forehead", forehead_rms_mm, on_forehead),
+        ("nose", nose_rms_mm, on_nose),
+    ]
+    .iter()
+    .filter(|(_, rms, on)| *rms > STABLE_PART_MAX_RMS_MM || *on == 0)
+    .map(|(name, rms, on)| format!("{name} {rms:.1} mm RMS over {on} vertices"))
+    .collect();
+    if !bad.is_empty() {
+        return Err(FemError::Definition(format!(
+            "the expression scan's stable parts do not agree with the neutral face after the rigid fit ({}; at most {STABLE_PART_MAX_RMS_MM} mm): another person, hair or a hat over the forehead, or feature points detected in the wrong place",
+            bad.join(", ")
+        ))
+        .into());
+    }
+    let (rotation_deg, translation_mm) = rigid_motion(scan, aligned)?;
+    Ok(Alignment {
+        rotation_deg,
+        translation_mm,
+        forehead_rms_mm,
+        nose_rms_mm,
+        stable_vertices_on_scan: on_forehead + on_nose,
+    })
+}
+
+/// RMS distance (mm) of `vertices`, displaced by `displacement`, to the scan (`index`); a
+/// vertex with no scan point within `max_mm` counts as `max_mm` away.
+pub(super) fn rms_to_scan(
     model: &FaceModel,
     index: &SurfaceIndex,
     vertices: &[usize],
@@ -337,7 +393,6 @@ pub fn fit_expression(
         return Err(FemError::Definition("fit needs the muscle basis".into()).into());
     }
     let n = model.surface.vertex_count();
-    let fixed = model.fixed_nodes();
     let mut aligned = align_scan(
         model,
         &model.surface.positions_mm,
@@ -349,24 +404,7 @@ pub fn fit_expression(
     // Vertices the scan covers (checked on the neutral face; holes and hair stay out), and
     // that the registration put on the neutral scan.
     let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
-    let vertices: Vec<usize> = (0..n)
-        .filter(|&v| {
-            let p = model.surface.positions_mm[v];
-            !fixed[v]
-                && index.closest(p, params.max_distance_mm).is_some()
-                && neutral_index
-                    .as_ref()
-                    .is_none_or(|ni| ni.closest(p, params.max_neutral_error_mm).is_some())
-        })
-        .collect();
-    if vertices.len() < 50 {
-        return Err(FemError::Definition(format!(
-            "only {} model vertices lie within {} mm of the expression scan",
-            vertices.len(),
-            params.max_distance_mm
-        ))
-        .into());
-    }
+    let vertices = vertices_on_scans(model, &index, neutral_index.as_ref(), params)?;
     let m = model.actuator_count();
     let basis: Vec<Vec<DVec3>> = (0..m)
         .map(|i| model.basis_displacement(i).expect("basis"))
@@ -440,26 +478,8 @@ pub fn fit_expression(
             .map(|v| model.surface.positions_mm[v] + w[v])
             .collect()
     };
-    let (forehead, nose) = stable_parts(model)?;
-    let (forehead_rms_mm, on_forehead) =
-        part_rms(&fitted, &forehead, &index, params.max_distance_mm);
-    let (nose_rms_mm, on_nose) = part_rms(&fitted, &nose, &index, params.max_distance_mm);
-    let bad: Vec<String> = [
-        ("forehead", forehead_rms_mm, on_forehead),
-        ("nose", nose_rms_mm, on_nose),
-    ]
-    .iter()
-    .filter(|(_, rms, on)| *rms > STABLE_PART_MAX_RMS_MM || *on == 0)
-    .map(|(name, rms, on)| format!("{name} {rms:.1} mm RMS over {on} vertices"))
-    .collect();
-    if !bad.is_empty() {
-        return Err(FemError::Definition(format!(
-            "the expression scan's stable parts do not agree with the neutral face after the rigid fit ({}; at most {STABLE_PART_MAX_RMS_MM} mm): another person, hair or a hat over the forehead, or feature points detected in the wrong place",
-            bad.join(", ")
-        ))
-        .into());
-    }
-    let (rotation_deg, translation_mm) = rigid_motion(expression_scan, &aligned)?;
+    let (_, nose) = stable_parts(model)?;
+    let alignment = check_alignment(model, &fitted, expression_scan, &aligned, &index, params)?;
     // The moving part: below the eyes (a quarter of the face height above the nose tip) and
     // outside the nose part.
     let moving: Vec<usize> = {
@@ -483,13 +503,6 @@ pub fn fit_expression(
     let moving_rms_before_mm = rms_to_scan(model, &index, &moving, &zero, params.max_distance_mm);
     let moving_rms_after_mm =
         rms_to_scan(model, &index, &moving, &fitted_u, params.max_distance_mm);
-    let alignment = Alignment {
-        rotation_deg,
-        translation_mm,
-        forehead_rms_mm,
-        nose_rms_mm,
-        stable_vertices_on_scan: on_forehead + on_nose,
-    };
     let names: Vec<String> = model.actuator_names();
     let mut closest_preset: Option<(String, f64)> = None;
     let mut w = Vec::new();

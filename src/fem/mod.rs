@@ -19,6 +19,7 @@
 
 pub mod anchor;
 pub mod assembly;
+pub mod compare;
 pub mod expressions;
 pub mod fit;
 pub mod hex8;
@@ -26,6 +27,7 @@ pub mod jaw;
 pub mod layers;
 pub mod muscles;
 pub mod picture;
+pub mod regions;
 pub mod solver;
 pub mod untangle;
 pub mod vtk;
