@@ -467,6 +467,16 @@ pub fn fit_expression(
     } else {
         None
     };
+    let mut ranked: Vec<(&String, f64)> = names
+        .iter()
+        .zip(fit.contributions_mm.iter().copied())
+        .collect();
+    ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let contributions: Vec<serde_json::Value> = ranked
+        .iter()
+        .filter(|(_, c)| *c > 0.0)
+        .map(|(n, c)| json!([n, round(*c, 3)]))
+        .collect();
     let (closest, closest_rms) = fit
         .closest_preset
         .map(|(n, r)| (Some(n), Some(round(r, 4))))
@@ -481,6 +491,9 @@ pub fn fit_expression(
         "moving_rms_before_mm": round(fit.moving_rms_before_mm, 4),
         "moving_rms_after_mm": round(fit.moving_rms_after_mm, 4),
         "moving_vertices": fit.moving_vertices,
+        // What each actuator moves of the fitted face (RMS along the normals, mm), largest
+        // first: comparable across muscles, soft-tissue loads and the jaw, unlike activations.
+        "contributions_mm": contributions,
         "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
         "repairs": repairs,
         "closest_preset": closest,

@@ -83,10 +83,26 @@ pub fn compare_presets(
     params: &FitParams,
 ) -> Result<Comparison> {
     let rest = &model.surface.positions_mm;
-    let aligned = align_scan(model, rest, expression_scan, scan_landmarks, params)?;
-    let index = SurfaceIndex::new(&aligned, 4.0);
-    let alignment = check_alignment(model, rest, expression_scan, &aligned, &index, params)?;
     let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
+    let neutral = neutral_index.as_ref();
+    let aligned = align_scan(
+        model,
+        rest,
+        neutral,
+        expression_scan,
+        scan_landmarks,
+        params,
+    )?;
+    let index = SurfaceIndex::new(&aligned, 4.0);
+    let alignment = check_alignment(
+        model,
+        rest,
+        neutral,
+        expression_scan,
+        &aligned,
+        &index,
+        params,
+    )?;
     let vertices = vertices_on_scans(model, &index, neutral_index.as_ref(), params)?;
     let regions = Regions::of(&model.surface, &model.feature_vertices)?;
     let used: Vec<bool> = {
@@ -130,7 +146,7 @@ pub fn compare_presets(
     let distance = |name: &str, u: &[DVec3]| -> Result<PresetDistance> {
         // Re-align on this preset's surface: its forehead and nose moved a little too.
         let surface: Vec<DVec3> = rest.iter().zip(u).map(|(p, d)| *p + *d).collect();
-        let again = align_scan(model, &surface, &aligned, None, params)?;
+        let again = align_scan(model, &surface, neutral, &aligned, None, params)?;
         let index = SurfaceIndex::new(&again, 4.0);
         let rms = |vs: &[usize]| rms_to_scan(model, &index, vs, u, params.max_distance_mm);
         Ok(PresetDistance {

@@ -97,6 +97,11 @@ pub struct FitResult {
     pub moving_rms_after_mm: f64,
     /// Vertices in that part.
     pub moving_vertices: usize,
+    /// Per actuator (model order): how much of the fitted surface motion it makes, as the RMS
+    /// over the fitted vertices of its activation times its displacement along the vertex
+    /// normal (what the fit sees), mm. Unlike the activations (forces, degrees, mm), these
+    /// compare across actuators: the largest ones are what the expression was explained by.
+    pub contributions_mm: Vec<f64>,
 }
 
 /// The rigid alignment of the expression scan onto the model ([`align_scan`]), as reported.
@@ -133,17 +138,12 @@ fn stable_parts(model: &FaceModel) -> Result<(Vec<usize>, Vec<usize>)> {
     Ok((r.forehead, r.nose))
 }
 
-/// The RMS distance of `vertices` (positions `reference_mm`) to `scan`, over those within
-/// `max_mm` of it, and how many those are.
-fn part_rms(
-    reference_mm: &[DVec3],
-    vertices: &[usize],
-    index: &SurfaceIndex,
-    max_mm: f64,
-) -> (f64, usize) {
-    let d: Vec<f64> = vertices
+/// The RMS distance of `points` to the scan (`index`), over those within `max_mm` of it, and
+/// how many those are.
+fn part_rms(points: &[DVec3], index: &SurfaceIndex, max_mm: f64) -> (f64, usize) {
+    let d: Vec<f64> = points
         .iter()
-        .filter_map(|&v| index.closest(reference_mm[v], max_mm).map(|(d, _)| d))
+        .filter_map(|&p| index.closest(p, max_mm).map(|(d, _)| d))
         .collect();
     let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt();
     (rms, d.len())
@@ -167,12 +167,44 @@ fn transform(mesh: &Mesh, t: &crate::registration::Similarity) -> Mesh {
     )
 }
 
+/// Where the stable `vertices` should meet the expression scan: their `reference_mm`
+/// positions, or with the neutral scan's index the neutral scan's points under them
+/// (closest within [`FitParams::max_distance_mm`]; vertices off the scan are left out) moved
+/// by the displacement `reference_mm` gives them (see [`align_scan`]).
+fn stable_targets(
+    model: &FaceModel,
+    reference_mm: &[DVec3],
+    neutral: Option<&SurfaceIndex>,
+    vertices: &[usize],
+    params: &FitParams,
+) -> Vec<DVec3> {
+    vertices
+        .iter()
+        .filter_map(|&v| {
+            let rest = model.surface.positions_mm[v];
+            match neutral {
+                None => Some(reference_mm[v]),
+                Some(index) => index
+                    .closest(rest, params.max_distance_mm)
+                    .map(|(_, c)| c + (reference_mm[v] - rest)),
+            }
+        })
+        .collect()
+}
+
 /// Moves `scan` into the frame of `model` rigidly: Horn on the stable landmarks if given, then
 /// ICP of the stable region of `reference_mm` (the model surface, possibly already deformed by
 /// the current expression estimate: one position per surface vertex).
+///
+/// With the neutral scan (`neutral`, its index) the ICP targets are the neutral scan's points
+/// under the model's stable vertices (closest points, within [`FitParams::max_distance_mm`]),
+/// moved by the same displacement `reference_mm` gives them: the expression scan is aligned
+/// onto the neutral scan, two measurements of the same forehead and nose, and the
+/// registration's own error there (1–2 mm on real scans) does not tilt it.
 pub fn align_scan(
     model: &FaceModel,
     reference_mm: &[DVec3],
+    neutral: Option<&SurfaceIndex>,
     scan: &Mesh,
     scan_landmarks: Option<&Landmarks>,
     params: &FitParams,
@@ -198,11 +230,11 @@ pub fn align_scan(
     }
     let (mut stable, nose) = stable_parts(model)?;
     stable.extend(nose);
+    let targets = stable_targets(model, reference_mm, neutral, &stable, params);
     for _ in 0..params.icp_rounds {
         let index = SurfaceIndex::new(&aligned, 4.0);
         let mut pairs = Vec::new();
-        for &v in &stable {
-            let p = reference_mm[v];
+        for &p in &targets {
             if let Some((d, c)) = index.closest(p, params.max_distance_mm) {
                 pairs.push((d, c, p));
             }
@@ -300,21 +332,26 @@ pub(super) fn vertices_on_scans(
     Ok(vertices)
 }
 
-/// The rigid motion from `scan` to `aligned` and how well the stable parts of `surface_mm`
-/// (the model's surface, deformed by the expression estimate) agree with the aligned scan
-/// (`index`). Errors naming the parts farther than [`STABLE_PART_MAX_RMS_MM`].
+/// The rigid motion from `scan` to `aligned` and how well the stable parts agree with the
+/// aligned scan (`index`): the model's surface `surface_mm` (deformed by the expression
+/// estimate) there, or with the neutral scan's index the neutral scan under it, as in
+/// [`align_scan`]. Errors naming the parts farther than [`STABLE_PART_MAX_RMS_MM`].
 pub(super) fn check_alignment(
     model: &FaceModel,
     surface_mm: &[DVec3],
+    neutral: Option<&SurfaceIndex>,
     scan: &Mesh,
     aligned: &Mesh,
     index: &SurfaceIndex,
     params: &FitParams,
 ) -> Result<Alignment> {
     let (forehead, nose) = stable_parts(model)?;
-    let (forehead_rms_mm, on_forehead) =
-        part_rms(surface_mm, &forehead, index, params.max_distance_mm);
-    let (nose_rms_mm, on_nose) = part_rms(surface_mm, &nose, index, params.max_distance_mm);
+    let part = |vs: &[usize]| {
+        let targets = stable_targets(model, surface_mm, neutral, vs, params);
+        part_rms(&targets, index, params.max_distance_mm)
+    };
+    let (forehead_rms_mm, on_forehead) = part(&forehead);
+    let (nose_rms_mm, on_nose) = part(&nose);
     let bad: Vec<String> = [
         ("forehead", forehead_rms_mm, on_forehead),
         ("nose", nose_rms_mm, on_nose),
@@ -393,9 +430,11 @@ pub fn fit_expression(
         return Err(FemError::Definition("fit needs the muscle basis".into()).into());
     }
     let n = model.surface.vertex_count();
+    let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
     let mut aligned = align_scan(
         model,
         &model.surface.positions_mm,
+        neutral_index.as_ref(),
         expression_scan,
         scan_landmarks,
         params,
@@ -403,7 +442,6 @@ pub fn fit_expression(
     let mut index = SurfaceIndex::new(&aligned, 4.0);
     // Vertices the scan covers (checked on the neutral face; holes and hair stay out), and
     // that the registration put on the neutral scan.
-    let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
     let vertices = vertices_on_scans(model, &index, neutral_index.as_ref(), params)?;
     let m = model.actuator_count();
     let basis: Vec<Vec<DVec3>> = (0..m)
@@ -428,7 +466,14 @@ pub fn fit_expression(
             let reference: Vec<DVec3> = (0..n)
                 .map(|v| model.surface.positions_mm[v] + u[v])
                 .collect();
-            aligned = align_scan(model, &reference, &aligned, None, params)?;
+            aligned = align_scan(
+                model,
+                &reference,
+                neutral_index.as_ref(),
+                &aligned,
+                None,
+                params,
+            )?;
             index = SurfaceIndex::new(&aligned, 4.0);
         }
         // Target displacement of each vertex: to its closest scan point from where it is now.
@@ -479,7 +524,15 @@ pub fn fit_expression(
             .collect()
     };
     let (_, nose) = stable_parts(model)?;
-    let alignment = check_alignment(model, &fitted, expression_scan, &aligned, &index, params)?;
+    let alignment = check_alignment(
+        model,
+        &fitted,
+        neutral_index.as_ref(),
+        expression_scan,
+        &aligned,
+        &index,
+        params,
+    )?;
     // The moving part: below the eyes (a quarter of the face height above the nose tip) and
     // outside the nose part.
     let moving: Vec<usize> = {
@@ -503,6 +556,17 @@ pub fn fit_expression(
     let moving_rms_before_mm = rms_to_scan(model, &index, &moving, &zero, params.max_distance_mm);
     let moving_rms_after_mm =
         rms_to_scan(model, &index, &moving, &fitted_u, params.max_distance_mm);
+    let contributions_mm: Vec<f64> = basis
+        .iter()
+        .zip(&activations)
+        .map(|(b, &a)| {
+            let sum: f64 = vertices
+                .iter()
+                .map(|&v| (a * model.surface.normals[v].dot(b[v])).powi(2))
+                .sum();
+            (sum / vertices.len() as f64).sqrt()
+        })
+        .collect();
     let names: Vec<String> = model.actuator_names();
     let mut closest_preset: Option<(String, f64)> = None;
     let mut w = Vec::new();
@@ -526,6 +590,7 @@ pub fn fit_expression(
         moving_rms_before_mm,
         moving_rms_after_mm,
         moving_vertices: moving.len(),
+        contributions_mm,
     })
 }
 

@@ -249,6 +249,37 @@ fn fit_expression_writes_a_loadable_preset() {
             .unwrap()
             > 0.5
     );
+    // Side by side with the scan it was learned from, the learned preset beats a built-in
+    // smile and the neutral face over the whole face and on the mouth.
+    let compare = |extra: &[&'static str]| -> Vec<String> {
+        let mut args = vec![
+            "compare-expression",
+            neutral.to_str().unwrap(),
+            smile.to_str().unwrap(),
+            "--landmarks",
+            lm_paths[0].to_str().unwrap(),
+            "--expression-landmarks",
+            lm_paths[1].to_str().unwrap(),
+            "--preset-file",
+            preset.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        args.iter().map(|s| s.to_string()).collect()
+    };
+    let args = compare(&["--preset", "learned_smile", "--preset", "happiness"]);
+    let c = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    println!("{c}");
+    let rows = c["rows"].as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["preset"].as_str().unwrap()).collect();
+    assert_eq!(names, ["none", "learned_smile", "happiness"]);
+    for key in ["whole_face_rms_mm", "mouth_rms_mm"] {
+        let rms = |k: usize| rows[k][key].as_f64().unwrap();
+        assert!(rms(1) < rms(2) && rms(1) < rms(0), "{key}: {rows:?}");
+    }
+    assert_eq!(c["best"]["whole_face"]["preset"], "learned_smile");
+    let bad = compare(&["--preset", "smirk"]);
+    let err = common::cli_error(&bad.iter().map(std::ffi::OsStr::new).collect::<Vec<_>>());
+    assert!(err.contains("unknown preset `smirk`"), "{err}");
 }
 
 #[test]
