@@ -429,6 +429,7 @@ pub fn register(
         io::write_mesh(path, &result.mesh)?;
     }
     let mut value = result.report_json();
+    value["face_region_distance_mm"] = face_region_distances(&prepared, &generic)?;
     value["landmarks_detected"] = json!(prepared.detection.is_some());
     value["landmarks_source"] = json!(prepared.landmark_source());
     value["landmarks_file"] = json!(prepared.given.as_ref().map(|(p, _)| p));
@@ -438,6 +439,57 @@ pub fn register(
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
+    Ok(value)
+}
+
+/// The registered face's distance to the scan per face region (`fem::regions`), the forehead
+/// cut at the forehead feature point (the hairline estimate): inside the face, where the
+/// registration must lie on the scan, against above the hairline, where hair and the scan's
+/// edge leave filled vertices off it by design.
+fn face_region_distances(
+    prepared: &crate::pipeline::PreparedScan,
+    generic: &generic_face::GenericFace,
+) -> Result<serde_json::Value> {
+    let mesh = &prepared.registration.mesh;
+    let regions = crate::fem::regions::Regions::of(mesh, &generic.feature_vertices)?;
+    let hairline =
+        mesh.positions_mm[generic.feature_vertices[crate::FeaturePoint::Forehead.index()] as usize];
+    let up = (hairline
+        - mesh.positions_mm[generic.feature_vertices[crate::FeaturePoint::Chin.index()] as usize])
+        .normalize_or_zero();
+    let (forehead, hair): (Vec<usize>, Vec<usize>) = regions
+        .forehead
+        .iter()
+        .partition(|&&v| (mesh.positions_mm[v] - hairline).dot(up) <= 0.0);
+    let index = crate::mesh::SurfaceIndex::new(&prepared.denoised, 4.0);
+    let r4 = |x: f64| (x * 1e4).round() / 1e4;
+    let stats = |vs: &[usize]| {
+        let d: Vec<f64> = vs
+            .iter()
+            .map(|&v| index.distance(mesh.positions_mm[v], 200.0))
+            .collect();
+        let s = crate::registration::DistanceStats::of(&d);
+        json!({"vertices": vs.len(), "mean": r4(s.mean), "p95": r4(s.p95), "max": r4(s.max)})
+    };
+    let parts: [(&str, &[usize]); 6] = [
+        ("forehead", &forehead),
+        ("brows", &regions.brows),
+        ("eyes", &regions.eyes),
+        ("nose", &regions.nose),
+        ("cheeks", &regions.cheeks),
+        ("mouth", &regions.mouth),
+    ];
+    let mut face: Vec<usize> = parts
+        .iter()
+        .flat_map(|(_, vs)| vs.iter().copied())
+        .collect();
+    face.sort_unstable();
+    face.dedup();
+    let mut value = stats(&face);
+    for (name, vs) in parts {
+        value["by_region"][name] = stats(vs);
+    }
+    value["above_hairline"] = stats(&hair);
     Ok(value)
 }
 
