@@ -7,27 +7,12 @@
 //! not how far it slid along itself. [`signed_residuals`] (`fit-expression --residual-ply`)
 //! maps what is left, per vertex and with its sign.
 //!
-//! Measured (cara1, `fit-expression cara1_frontal1 cara1_<expression>`, RMS to the scan, mm;
-//! the columns are the same binary with `--muscles` files that leave out soft-tissue loads):
-//!
-//! | expression | neutral | 18 muscles + jaw | + cheek_raiser | + all 4 soft-tissue pairs (built-in) |
-//! |---|---|---|---|---|
-//! | sonrisa (smile) | 2.442 | 2.108 (86 %) | 1.582 (65 %) | **1.169 (48 %)** |
-//! | risa (laugh) | 2.760 | 2.116 (77 %) | 1.735 (63 %) | 1.459 (53 %) |
-//! | gesto | 3.013 | 2.177 (72 %) | 1.887 (63 %) | 1.523 (51 %) |
-//! | frontal2 (neutral rescan) | 0.883 | 0.638 (72 %) | 0.606 (69 %) | 0.599 (68 %) |
-//!
-//! The residual map of the smile without the loads showed the lateral cheeks 3–7 mm in front
-//! of the fitted model: a contracting linear muscle slides skin along itself and cannot
-//! thicken the cheek, so `assets/muscles.ron` adds soft-tissue load pairs (see its comment),
-//! each placed on the map the previous one left: the malar cheek (`cheek_raiser`), the cheek
-//! beside the lip corner (`buccal_bulge`), the deepening nasolabial fold and the lower lid
-//! (`infraorbital_bulge`). The neutral rescan fits hardly better with them (72 → 68 %), so they
-//! explain expression, not noise: on synthetic smiles they were not placed on, the residual
-//! falls from 85 % to 57 % of the RMS before the fit (docs/measurements.md). What
-//! is left on the cara1 smile (13 % of the vertices off by more than 2 mm): +2–4 mm beside
-//! the nose wings, along the lower lids and at the face's outer rim, −1–2 mm lateral to the
-//! mouth on the subject's right.
+//! Why the soft-tissue loads exist: on the cara1 smile the residual map without them showed
+//! the lateral cheeks 3–7 mm in front of the fitted model, since a contracting linear muscle
+//! slides skin along itself and cannot thicken the cheek (`assets/muscles.ron`). Per actuator,
+//! [`FitResult::contributions_mm`] says what explained the expression. Measured fits, on cara1
+//! and cara6 and on generated smiles: `docs/measurements.md`, "Expressions on real pairs" and
+//! "Expression fit: the soft-tissue loads".
 
 use super::FaceModel;
 use super::anchor::FaceFrame;

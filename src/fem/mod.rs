@@ -28,6 +28,7 @@ pub mod layers;
 pub mod muscles;
 pub mod picture;
 pub mod regions;
+pub mod repair;
 pub mod solver;
 pub mod untangle;
 pub mod vtk;

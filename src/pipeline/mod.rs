@@ -10,18 +10,17 @@ use crate::{Landmarks, Mesh, Result, io};
 use std::path::Path;
 
 mod augment;
-mod fem_model;
 mod landmark_file;
 mod review;
 mod transfer;
 
+pub use crate::fem::repair::{
+    FemRepairs, MIN_QUAD_SCALED_JACOBIAN, SURFACE_REPAIRS, fem_model, quad_corner_quality,
+    quad_scaled_jacobian, relax_skewed_quads, repaired_fem_model, smooth_patch, unfold_surface,
+};
 pub use augment::{
     AugmentFailure, AugmentParams, AugmentedScan, DONE_MARKER, FAILURES_FILE, Shard, augment,
     augment_recipe, augment_scan, gallery_scans, read_augment_failures,
-};
-pub use fem_model::{
-    FemRepairs, MIN_QUAD_SCALED_JACOBIAN, SURFACE_REPAIRS, fem_model, quad_corner_quality,
-    quad_scaled_jacobian, relax_skewed_quads, repaired_fem_model, smooth_patch, unfold_surface,
 };
 pub use landmark_file::{
     CORRECTION_SUFFIX, LandmarkFile, LandmarkSource, correction_for, correction_path,

@@ -237,10 +237,16 @@ fn facing_and_up_give_the_scan_axes() {
     // scan: measured mean 0.25 mm, p95 0.0 mm over 1,601 vertices; above the hairline (hair,
     // the scan's top edge) mean 5.9 mm.
     let face = &a["face_region_distance_mm"];
-    let (mean, p95) = (face["mean"].as_f64().unwrap(), face["p95"].as_f64().unwrap());
+    let (mean, p95) = (
+        face["mean"].as_f64().unwrap(),
+        face["p95"].as_f64().unwrap(),
+    );
     assert!(mean <= 1.0 && p95 <= 3.0, "{face}");
     assert_eq!(face["by_region"].as_object().unwrap().len(), 6, "{face}");
-    assert!(face["above_hairline"]["mean"].as_f64().unwrap() > mean, "{face}");
+    assert!(
+        face["above_hairline"]["mean"].as_f64().unwrap() > mean,
+        "{face}"
+    );
     let out = facesynth(&["landmarks", t, "--facing", "+z", "--up", "-z"]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
