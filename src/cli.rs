@@ -272,7 +272,7 @@ pub fn run(cli: Cli) -> Result<Next> {
             landmarks_dir,
             shard,
         }) => {
-            let params = crate::pipeline::AugmentParams {
+            let params = crate::augment::AugmentParams {
                 landmarks_dir,
                 shard,
                 gallery_suffix: suffix,

@@ -5,6 +5,7 @@
 //! Module map (one paper step per file):
 
 /// Headless command implementations behind `facesynth <command>` (main.rs only parses).
+pub mod augment;
 pub mod cli;
 /// Surface descriptors (paper 2.1.2, Figure 7): principal curvatures, shape index, normal maps.
 pub mod curvature;

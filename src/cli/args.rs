@@ -338,7 +338,7 @@ pub enum Command {
         /// task of a cluster job array; the shards together write what one run writes
         /// (failures in `failures.K-of-N.json`).
         #[arg(long, value_name = "K/N")]
-        shard: Option<crate::pipeline::Shard>,
+        shard: Option<crate::augment::Shard>,
     },
     /// Print timings as JSON.
     Bench {

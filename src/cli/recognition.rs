@@ -168,7 +168,7 @@ fn cmc_curves(
 pub fn augment(
     gallery: &Path,
     out: &Path,
-    params: &crate::pipeline::AugmentParams,
+    params: &crate::augment::AugmentParams,
 ) -> Result<serde_json::Value> {
     let start = std::time::Instant::now();
     // A bar on a terminal; one line per scan where stderr is a log (indicatif hides the bar
@@ -179,7 +179,7 @@ pub fn augment(
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let result = crate::pipeline::augment(gallery, out, params, &|k, n, line| {
+    let result = crate::augment::augment(gallery, out, params, &|k, n, line| {
         if bar.is_hidden() {
             eprintln!("augment [{k}/{n}] {line}");
             return;

@@ -136,7 +136,7 @@ pub struct ExtrusionFix {
 /// corners of each poor element get ×0.85 per pass, down to 0.2 of the requested thickness.
 /// Errors with [`FemError::InvertedElement`] (or [`FemError::PoorElement`] when no element is
 /// inverted) when that is not enough: the surface itself must change there (the caller's
-/// repair, `pipeline::fem_model`). Smoother offset directions (more rounds) were the old
+/// repair, `fem::repair`). Smoother offset directions (more rounds) were the old
 /// remedy; with the inner layers evened out they only made more elements poor on real
 /// registrations and cost time (docs/measurements.md).
 pub fn extrude_valid(surface: &Mesh, params: &LayerParams) -> Result<(HexMesh, ExtrusionFix)> {

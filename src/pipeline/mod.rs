@@ -9,7 +9,6 @@ use crate::registration::{self, RegistrationParams, RegistrationResult};
 use crate::{Landmarks, Mesh, Result, io};
 use std::path::Path;
 
-mod augment;
 mod landmark_file;
 mod review;
 mod transfer;
@@ -17,10 +16,6 @@ mod transfer;
 pub use crate::fem::repair::{
     FemRepairs, MIN_QUAD_SCALED_JACOBIAN, SURFACE_REPAIRS, fem_model, quad_corner_quality,
     quad_scaled_jacobian, relax_skewed_quads, repaired_fem_model, smooth_patch, unfold_surface,
-};
-pub use augment::{
-    AugmentFailure, AugmentParams, AugmentedScan, DONE_MARKER, FAILURES_FILE, Shard, augment,
-    augment_recipe, augment_scan, gallery_scans, read_augment_failures,
 };
 pub use landmark_file::{
     CORRECTION_SUFFIX, LandmarkFile, LandmarkSource, correction_for, correction_path,
@@ -157,4 +152,20 @@ pub fn prepare_scan(
 ) -> Result<PreparedScan> {
     let mesh = io::read_mesh(path)?;
     prepare_mesh(mesh, landmarks_file, generic).map_err(|e| e.in_file(path))
+}
+
+/// The gallery scans of `dir` (sorted).
+pub fn gallery_scans(dir: &Path, suffix: &str) -> Result<Vec<std::path::PathBuf>> {
+    let mut out: Vec<_> = std::fs::read_dir(dir)
+        .map_err(|e| crate::Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && p.file_stem()
+                    .is_some_and(|s| s.to_string_lossy().ends_with(suffix))
+                && io::MeshFormat::from_path(p).is_ok()
+        })
+        .collect();
+    out.sort();
+    Ok(out)
 }

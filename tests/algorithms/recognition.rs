@@ -77,7 +77,7 @@ fn bulge_augmented(dir: &Path) -> tempfile::TempDir {
         std::fs::create_dir_all(&out).unwrap();
         io::write_mesh(&out.join("bulge.obj"), &mesh).unwrap();
         // `augment` marks a finished folder; evaluate uses only marked ones.
-        std::fs::write(out.join(facesynth::pipeline::DONE_MARKER), "{}\n").unwrap();
+        std::fs::write(out.join(facesynth::augment::DONE_MARKER), "{}\n").unwrap();
     }
     aug
 }

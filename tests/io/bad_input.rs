@@ -590,10 +590,10 @@ fn pipeline_steps_report_what_they_could_not_do_as_typed_errors() {
 
     // The batch goes on and lists each with its stage.
     let out = dir.path().join("aug");
-    let (done, failed) = facesynth::pipeline::augment(
+    let (done, failed) = facesynth::augment::augment(
         dir.path(),
         &out,
-        &facesynth::pipeline::AugmentParams::default(),
+        &facesynth::augment::AugmentParams::default(),
         &|_, _, _| {},
     )
     .unwrap();

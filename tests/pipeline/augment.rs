@@ -4,7 +4,8 @@
 use crate::common;
 
 use facesynth::Mesh;
-use facesynth::pipeline::{self, AugmentParams, DONE_MARKER};
+use facesynth::augment::{AugmentParams, DONE_MARKER};
+use facesynth::pipeline;
 use glam::DVec3;
 
 /// A regular grid of quads in the plane z = 0, `n × n` vertices, `step` mm apart.
@@ -66,7 +67,7 @@ fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
     // The progress callback (the CLI's bar): once with 0 before any work, then each count once.
     let calls = std::sync::Mutex::new(Vec::new());
     let record = |k: usize, n: usize, _: &str| calls.lock().unwrap().push((k, n));
-    let (done, failed) = pipeline::augment(&data, out.path(), &params, &record).unwrap();
+    let (done, failed) = facesynth::augment::augment(&data, out.path(), &params, &record).unwrap();
     let mut calls = calls.into_inner().unwrap();
     assert_eq!(calls[0], (0, 2));
     calls.sort();
@@ -107,7 +108,7 @@ fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
     // exactly that subject; the finished one is skipped.
     std::fs::remove_file(dir.join(DONE_MARKER)).unwrap();
     std::fs::write(dir.join("happiness.ply"), b"ply\nformat binary_little").unwrap();
-    let (again, failed) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    let (again, failed) = facesynth::augment::augment(&data, out.path(), &params, &quiet).unwrap();
     assert!(failed.is_empty());
     let redone: Vec<_> = again.iter().filter(|a| !a.resumed).collect();
     assert_eq!(redone.len(), 1);
@@ -130,7 +131,7 @@ fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
         .find(|e| e.name == "frown")
         .unwrap();
     frown.activations.insert("lateral_corrugator".into(), 0.5);
-    let (third, failed) = pipeline::augment(&data, out.path(), &other, &quiet).unwrap();
+    let (third, failed) = facesynth::augment::augment(&data, out.path(), &other, &quiet).unwrap();
     assert!(failed.is_empty(), "{failed:?}");
     assert_eq!(third.len(), 2);
     assert!(third.iter().all(|a| a.redone && !a.resumed));
@@ -143,9 +144,12 @@ fn augment_writes_18_expressions_per_scan_and_resumes_after_a_killed_run() {
     assert_eq!(names, ["frown.ply", "happiness.ply"]);
     let done: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join(DONE_MARKER)).unwrap()).unwrap();
-    assert_eq!(done["recipe"], pipeline::augment_recipe(&other).unwrap());
+    assert_eq!(
+        done["recipe"],
+        facesynth::augment::augment_recipe(&other).unwrap()
+    );
     // The same settings once more: nothing to do.
-    let (fourth, _) = pipeline::augment(&data, out.path(), &other, &quiet).unwrap();
+    let (fourth, _) = facesynth::augment::augment(&data, out.path(), &other, &quiet).unwrap();
     assert!(fourth.iter().all(|a| a.resumed && !a.redone));
 }
 
@@ -164,7 +168,7 @@ fn augment_lists_a_broken_scan_and_goes_on() {
     )
     .unwrap();
     let out = tempfile::tempdir().unwrap();
-    let (done, failed) = pipeline::augment(
+    let (done, failed) = facesynth::augment::augment(
         gallery.path(),
         out.path(),
         &AugmentParams::default(),
@@ -185,7 +189,8 @@ fn augmented_gallery_feeds_the_recognition_protocol() {
     let data = common::synth_dataset(2, 11, false);
     let out = tempfile::tempdir().unwrap();
     let (done, _) =
-        pipeline::augment(&data, out.path(), &AugmentParams::default(), &|_, _, _| {}).unwrap();
+        facesynth::augment::augment(&data, out.path(), &AugmentParams::default(), &|_, _, _| {})
+            .unwrap();
     let params = facesynth::recognition::ProtocolParams::default();
     let eval = facesynth::recognition::evaluate(&data, Some(out.path()), &params).unwrap();
     let r = &eval.report;
@@ -331,8 +336,8 @@ fn the_recipe_records_the_muscles_and_a_bad_muscle_file_is_refused_before_any_wo
     let mut stronger = AugmentParams::default();
     stronger.muscles.muscles[0].force_n *= 2.0;
     let (a, b) = (
-        pipeline::augment_recipe(&base).unwrap(),
-        pipeline::augment_recipe(&stronger).unwrap(),
+        facesynth::augment::augment_recipe(&base).unwrap(),
+        facesynth::augment::augment_recipe(&stronger).unwrap(),
     );
     assert_ne!(a, b);
     assert_eq!(a["muscles"]["muscles"][0]["name"], "zygomatic_major");
@@ -367,7 +372,7 @@ fn a_suspect_gallery_scan_is_listed_not_augmented() {
     .unwrap();
     let out = tempfile::tempdir().unwrap();
     let quiet = |_: usize, _: usize, _: &str| {};
-    let (done, failed) = pipeline::augment(
+    let (done, failed) = facesynth::augment::augment(
         gallery.path(),
         out.path(),
         &AugmentParams::default(),
@@ -396,7 +401,8 @@ fn augmentation_raises_rank1_on_a_small_generated_gallery() {
     let data = common::synth_dataset(6, 31, false);
     let out = tempfile::tempdir().unwrap();
     let (done, failed) =
-        pipeline::augment(&data, out.path(), &AugmentParams::default(), &|_, _, _| {}).unwrap();
+        facesynth::augment::augment(&data, out.path(), &AugmentParams::default(), &|_, _, _| {})
+            .unwrap();
     assert_eq!((done.len(), failed.len()), (6, 0), "{failed:?}");
     let params = ProtocolParams::default();
     let with = evaluate(&data, Some(out.path()), &params).unwrap().report;

@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use facesynth::pipeline::DONE_MARKER;
+use facesynth::augment::DONE_MARKER;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};

@@ -3,7 +3,8 @@
 
 use crate::common;
 
-use facesynth::pipeline::{self, AugmentParams, DONE_MARKER, LandmarkFile, LandmarkSource, Shard};
+use facesynth::augment::{AugmentParams, DONE_MARKER, Shard};
+use facesynth::pipeline::{self, LandmarkFile, LandmarkSource};
 use facesynth::{FeaturePoint, Landmarks};
 use std::path::{Path, PathBuf};
 
@@ -205,7 +206,7 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
         ..AugmentParams::default()
     };
     let quiet = |_: usize, _: usize, _: &str| {};
-    let (first, failed) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    let (first, failed) = facesynth::augment::augment(&data, out.path(), &params, &quiet).unwrap();
     assert!(failed.is_empty(), "{failed:?}");
     assert!(
         first
@@ -232,9 +233,9 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
     };
     let path = corrections.path().join("subj000_frontal1.landmarks.json");
     file.write(&path).unwrap();
-    let (second, failed) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    let (second, failed) = facesynth::augment::augment(&data, out.path(), &params, &quiet).unwrap();
     assert!(failed.is_empty(), "{failed:?}");
-    let by_stem = |list: &[pipeline::AugmentedScan], stem: &str| {
+    let by_stem = |list: &[facesynth::augment::AugmentedScan], stem: &str| {
         list.iter()
             .find(|a| a.scan.file_stem().unwrap() == stem)
             .unwrap()
@@ -252,7 +253,7 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
     assert_eq!(done["corrected_points"], serde_json::json!(["nose_tip"]));
 
     // Unchanged: resumed. Changed again: redone.
-    let (third, _) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    let (third, _) = facesynth::augment::augment(&data, out.path(), &params, &quiet).unwrap();
     assert!(third.iter().all(|a| a.resumed));
     assert_eq!(
         by_stem(&third, "subj000_frontal1").landmarks_source,
@@ -260,7 +261,7 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
     );
     file.landmarks.set(FeaturePoint::NoseTip, tip);
     file.write(&path).unwrap();
-    let (fourth, _) = pipeline::augment(&data, out.path(), &params, &quiet).unwrap();
+    let (fourth, _) = facesynth::augment::augment(&data, out.path(), &params, &quiet).unwrap();
     assert!(by_stem(&fourth, "subj000_frontal1").redone);
     assert!(by_stem(&fourth, "subj001_frontal1").resumed);
 
@@ -296,7 +297,8 @@ fn three_shards_write_what_one_run_writes() {
     };
     let quiet = |_: usize, _: usize, _: &str| {};
     let single = tempfile::tempdir().unwrap();
-    let (done, failed) = pipeline::augment(gallery.path(), single.path(), &params, &quiet).unwrap();
+    let (done, failed) =
+        facesynth::augment::augment(gallery.path(), single.path(), &params, &quiet).unwrap();
     assert_eq!((done.len(), failed.len()), (3, 1));
     let sharded = tempfile::tempdir().unwrap();
     let mut handled = Vec::new();
@@ -306,7 +308,8 @@ fn three_shards_write_what_one_run_writes() {
             shard,
             ..params.clone()
         };
-        let (done, failed) = pipeline::augment(gallery.path(), sharded.path(), &p, &quiet).unwrap();
+        let (done, failed) =
+            facesynth::augment::augment(gallery.path(), sharded.path(), &p, &quiet).unwrap();
         handled.extend(done.iter().map(|a| a.scan.clone()));
         handled.extend(failed.iter().map(|f| f.scan.clone()));
         let list = read_json(&sharded.path().join(format!("failures.{k}-of-3.json")));
@@ -327,7 +330,7 @@ fn three_shards_write_what_one_run_writes() {
             );
         }
     }
-    let merged = pipeline::read_augment_failures(sharded.path()).unwrap();
+    let merged = facesynth::augment::read_augment_failures(sharded.path()).unwrap();
     assert_eq!(merged.len(), 1);
     assert!(
         merged[0]["scan"]
@@ -336,7 +339,7 @@ fn three_shards_write_what_one_run_writes() {
             .ends_with("broken_frontal1.wrl")
     );
     assert_eq!(
-        pipeline::read_augment_failures(single.path()).unwrap(),
+        facesynth::augment::read_augment_failures(single.path()).unwrap(),
         merged
     );
 

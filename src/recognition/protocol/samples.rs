@@ -141,7 +141,7 @@ pub struct Samples {
 /// `landmarks`), when that file is for this very scan file.
 fn cached_landmarks(augmented: &Path, scan: &ScanFile) -> Option<crate::Landmarks> {
     let stem = scan.path.file_stem()?.to_str()?;
-    let done = augmented.join(stem).join(crate::pipeline::DONE_MARKER);
+    let done = augmented.join(stem).join(crate::augment::DONE_MARKER);
     let mut v = read_json(&done).ok()?;
     let same_file = v["scan"]
         .as_str()
@@ -212,7 +212,7 @@ pub fn collect_samples(
         })
         .collect();
     let augment_failures = match augmented {
-        Some(aug) => crate::pipeline::read_augment_failures(aug)?,
+        Some(aug) => crate::augment::read_augment_failures(aug)?,
         None => Vec::new(),
     };
     let mut stage_seconds = BTreeMap::new();
@@ -293,12 +293,12 @@ pub fn collect_samples(
                     let dir = aug.join(format!("{}_{}", s.subject, s.scan));
                     // A folder without the done marker is from a killed or failed `augment`:
                     // its meshes may be a partial set, so none of them is used.
-                    if dir.is_dir() && !dir.join(crate::pipeline::DONE_MARKER).is_file() {
+                    if dir.is_dir() && !dir.join(crate::augment::DONE_MARKER).is_file() {
                         failures.push(Failure {
                             file: dir.clone(),
                             reason: format!(
                                 "augmentation unfinished (no {}); re-run `facesynth augment`",
-                                crate::pipeline::DONE_MARKER
+                                crate::augment::DONE_MARKER
                             ),
                         });
                     } else if dir.is_dir() {

@@ -1,11 +1,11 @@
 //! Gallery augmentation (paper section 3): 18 synthetic expressions per neutral gallery scan,
 //! in parallel, resumable, failures listed.
 
-use super::{
-    CavityParams, LandmarkFile, LandmarkSource, TransferWeights, correction_for, mouth_cavity,
-    prepare_scan, repaired_fem_model,
-};
 use crate::generic_face::GenericFace;
+use crate::pipeline::{
+    CavityParams, LandmarkFile, LandmarkSource, TransferWeights, correction_for, gallery_scans,
+    mouth_cavity, prepare_scan, repaired_fem_model,
+};
 use crate::{Error, Result, io};
 use std::path::Path;
 
@@ -272,22 +272,6 @@ fn remove_stale_temp_files(dir: &Path) {
             let _ = std::fs::remove_file(e.path());
         }
     }
-}
-
-/// The gallery scans of `dir` (sorted).
-pub fn gallery_scans(dir: &Path, suffix: &str) -> Result<Vec<std::path::PathBuf>> {
-    let mut out: Vec<_> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && p.file_stem()
-                    .is_some_and(|s| s.to_string_lossy().ends_with(suffix))
-                && io::MeshFormat::from_path(p).is_ok()
-        })
-        .collect();
-    out.sort();
-    Ok(out)
 }
 
 /// One gallery scan: denoise → landmarks → register → FEM → expressions, written into
