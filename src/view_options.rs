@@ -109,4 +109,7 @@ pub enum Overlay {
     Displacement,
     /// The scan's shape index (cap 1, saddle 0.5, cup 0) from the feature-point detection.
     ShapeIndex,
+    /// The face fitted to an expression scan (`--fit`), coloured by its distance to that scan
+    /// (0–5 mm, as `fit-expression --residual-png`; grey: no scan point within reach).
+    FitResidual,
 }

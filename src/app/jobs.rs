@@ -108,6 +108,15 @@ pub struct FitState {
     pub rms_after_mm: f64,
     pub closest_preset: Option<(String, f64)>,
     pub vertices_used: usize,
+    /// The same over the part an expression moves most (mouth, cheeks, chin), mm.
+    pub moving_rms_before_mm: f64,
+    pub moving_rms_after_mm: f64,
+    /// Per skin vertex of the fitted face: its signed distance to the aligned expression scan,
+    /// mm (+: the scan in front; `None`: no scan point within reach), as
+    /// [`crate::fem::fit::signed_residuals`].
+    pub residual_mm: Vec<Option<f64>>,
+    /// The actuators that explain the fit, largest first: (name, contribution in mm).
+    pub contributions_mm: Vec<(String, f64)>,
     pub millis: f64,
 }
 

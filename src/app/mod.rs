@@ -274,7 +274,9 @@ impl EditorApp {
             );
         }
         let fem = args.fem || args.expression.is_some() || args.fit.is_some();
-        view.overlay = args.show.unwrap_or(if fem {
+        view.overlay = args.show.unwrap_or(if args.fit.is_some() {
+            Overlay::FitResidual
+        } else if fem {
             Overlay::Plain
         } else if args.register {
             Overlay::Registration

@@ -158,7 +158,11 @@ fn build_scene(app: &EditorApp) -> SceneCache {
         _ => None,
     };
     let fem = doc.fem.as_ref().filter(|_| {
-        view.layers.show_fem && matches!(view.overlay, Overlay::Plain | Overlay::Displacement)
+        view.layers.show_fem
+            && matches!(
+                view.overlay,
+                Overlay::Plain | Overlay::Displacement | Overlay::FitResidual
+            )
     });
     let registered = doc
         .registration
@@ -175,13 +179,28 @@ fn build_scene(app: &EditorApp) -> SceneCache {
         };
         let skin = Arc::new(layer_mesh(0));
         if view.layers.skin {
-            let colours = (view.overlay == Overlay::Displacement).then(|| {
-                let magnitude: Vec<f64> = u[..n].iter().map(|d| d.length()).collect();
-                let scale = ColourScale::magnitude(&magnitude, 0.5, "displacement (mm)");
-                let c = scale.colours(&magnitude);
-                legend = Some(scale);
-                c
-            });
+            let colours = match view.overlay {
+                Overlay::Displacement => {
+                    let magnitude: Vec<f64> = u[..n].iter().map(|d| d.length()).collect();
+                    let scale = ColourScale::magnitude(&magnitude, 0.5, "displacement (mm)");
+                    let c = scale.colours(&magnitude);
+                    legend = Some(scale);
+                    Some(c)
+                }
+                Overlay::FitResidual => doc.fit.as_ref().and_then(|f| {
+                    let distance = fit_residual_magnitude(f, n)?;
+                    let scale = ColourScale {
+                        ramp: crate::render::colormap::Ramp::Sequential,
+                        min: 0.0,
+                        max: crate::fem::fit::RESIDUAL_MAX_MM,
+                        title: "distance to the expression scan (mm)".into(),
+                    };
+                    let c = scale.colours(&distance);
+                    legend = Some(scale);
+                    Some(c)
+                }),
+                _ => None,
+            };
             meshes.push((
                 10,
                 Arc::new(MeshData::from_mesh(&skin, colours.as_deref())),
@@ -694,6 +713,17 @@ fn legend_ui(painter: &egui::Painter, rect: egui::Rect, scale: &ColourScale) {
         egui::FontId::proportional(12.0),
         text,
     );
+}
+
+/// |residual| per skin vertex of the fitted face (NaN: no scan point within reach), when the
+/// fit was made on this face (`n` skin vertices).
+pub fn fit_residual_magnitude(fit: &crate::app::jobs::FitState, n: usize) -> Option<Vec<f64>> {
+    (fit.residual_mm.len() == n).then(|| {
+        fit.residual_mm
+            .iter()
+            .map(|r| r.map_or(f64::NAN, f64::abs))
+            .collect()
+    })
 }
 
 #[cfg(test)]

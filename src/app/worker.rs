@@ -125,6 +125,17 @@ impl WorkerState {
         let name = path
             .file_stem()
             .map_or_else(|| "fitted".into(), |s| s.to_string_lossy().into_owned());
+        let fitted = model.deformed_surface(&fit.activations).map_err(e)?;
+        let params = crate::fem::fit::FitParams::default();
+        let residual_mm =
+            crate::fem::fit::signed_residuals(&fitted, &fit.aligned_scan, params.max_distance_mm);
+        let mut contributions_mm: Vec<(String, f64)> = model
+            .actuator_names()
+            .into_iter()
+            .zip(fit.contributions_mm.iter().copied())
+            .filter(|(_, c)| *c > 0.0)
+            .collect();
+        contributions_mm.sort_by(|a, b| b.1.total_cmp(&a.1));
         Ok(FitState {
             name,
             activations: model
@@ -138,6 +149,10 @@ impl WorkerState {
             rms_after_mm: fit.rms_after_mm,
             closest_preset: fit.closest_preset,
             vertices_used: fit.vertices_used,
+            moving_rms_before_mm: fit.moving_rms_before_mm,
+            moving_rms_after_mm: fit.moving_rms_after_mm,
+            residual_mm,
+            contributions_mm,
             millis: start.elapsed().as_secs_f64() * 1e3,
         })
     }

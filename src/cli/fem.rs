@@ -308,9 +308,6 @@ pub fn bench_fem() -> Result<serde_json::Value> {
     }))
 }
 
-/// The residual picture's colour scale: red at this distance to the scan, mm.
-const RESIDUAL_PNG_MAX_MM: f64 = 5.0;
-
 /// A neutral scan's solved FEM face and an expression scan of the same person, ready to fit
 /// or compare (`fit-expression`, `compare-expression`).
 pub struct ScanPair {
@@ -449,8 +446,12 @@ pub fn fit_expression(
         }
         if let Some(path) = outputs.residual_png {
             let magnitude: Vec<f64> = r.iter().map(|d| d.map_or(0.0, f64::abs)).collect();
-            let img =
-                crate::fem::picture::render_front(&fitted, &magnitude, RESIDUAL_PNG_MAX_MM, 480);
+            let img = crate::fem::picture::render_front(
+                &fitted,
+                &magnitude,
+                crate::fem::fit::RESIDUAL_MAX_MM,
+                480,
+            );
             crate::io::write_png(path, &img)?;
         }
         let inside: Vec<f64> = r.iter().flatten().copied().collect();

@@ -111,6 +111,11 @@ pub struct Alignment {
 /// lower forehead, which the forehead part excludes; cara1: 0.3–0.6 mm).
 pub const STABLE_PART_MAX_RMS_MM: f64 = 2.5;
 
+/// Top of the residual maps' colour range (`fit-expression --residual-png`, the editor's fit
+/// residual overlay), mm: a fit is good where it stays well below, scanner noise and
+/// registration error are ~0.5–1.5 mm.
+pub const RESIDUAL_MAX_MM: f64 = 5.0;
+
 /// ICP pairs farther apart than this many times the median pair distance (but at least
 /// [`ICP_TRIM_MIN_MM`]) are left out of a round.
 const ICP_TRIM_FACTOR: f64 = 2.5;
@@ -194,32 +199,46 @@ pub fn align_scan(
     scan_landmarks: Option<&Landmarks>,
     params: &FitParams,
 ) -> Result<Mesh> {
-    let mut aligned = scan.clone();
-    if let Some(lm) = scan_landmarks {
-        // Points that expressions barely move: the outer eye corners ride up with the cheeks
-        // in a smile, and the forehead point is a border (hair line) estimate.
-        let stable = [
-            FeaturePoint::NoseTip,
-            FeaturePoint::InnerEyeLeft,
-            FeaturePoint::InnerEyeRight,
-            FeaturePoint::NoseCornerLeft,
-            FeaturePoint::NoseCornerRight,
-        ];
-        let from: Vec<DVec3> = stable.iter().map(|&p| lm.get(p)).collect();
-        let to: Vec<DVec3> = stable
-            .iter()
-            .map(|&p| reference_mm[model.feature_vertices[p.index()] as usize])
-            .collect();
-        let t = horn_absolute_orientation(&from, &to, false)?;
-        aligned = transform(&aligned, &t);
-    }
     let (mut stable, nose) = stable_parts(model)?;
     stable.extend(nose);
     let targets = stable_targets(model, reference_mm, neutral, &stable, params);
+    let plain = icp(scan.clone(), &targets, params);
+    let Some(lm) = scan_landmarks else {
+        return plain.map(|(m, _)| m);
+    };
+    // Points that expressions barely move: the outer eye corners ride up with the cheeks in a
+    // smile, and the forehead point is a border (hair line) estimate.
+    let stable_points = [
+        FeaturePoint::NoseTip,
+        FeaturePoint::InnerEyeLeft,
+        FeaturePoint::InnerEyeRight,
+        FeaturePoint::NoseCornerLeft,
+        FeaturePoint::NoseCornerRight,
+    ];
+    let from: Vec<DVec3> = stable_points.iter().map(|&p| lm.get(p)).collect();
+    let to: Vec<DVec3> = stable_points
+        .iter()
+        .map(|&p| reference_mm[model.feature_vertices[p.index()] as usize])
+        .collect();
+    let t = horn_absolute_orientation(&from, &to, false)?;
+    let started = icp(transform(scan, &t), &targets, params);
+    // Detected points can be wrong (a smile moves the nose corners, a failed detection puts
+    // them anywhere): the start whose ICP ends nearer the stable parts wins.
+    match (started, plain) {
+        (Ok(a), Ok(b)) => Ok(if a.1 <= b.1 { a.0 } else { b.0 }),
+        (Ok(a), Err(_)) => Ok(a.0),
+        (Err(e), Ok(_)) | (Err(e), Err(_)) => Err(e),
+    }
+}
+
+/// Trimmed ICP of `aligned` onto the stable `targets` ([`FitParams::icp_rounds`] rounds): the
+/// moved scan and the RMS distance of all targets to it afterwards (a target with no scan
+/// point within [`FitParams::max_distance_mm`] counts as that far), mm.
+fn icp(mut aligned: Mesh, targets: &[DVec3], params: &FitParams) -> Result<(Mesh, f64)> {
     for _ in 0..params.icp_rounds {
         let index = SurfaceIndex::new(&aligned, 4.0);
         let mut pairs = Vec::new();
-        for &p in &targets {
+        for &p in targets {
             if let Some((d, c)) = index.closest(p, params.max_distance_mm) {
                 pairs.push((d, c, p));
             }
@@ -250,7 +269,13 @@ pub fn align_scan(
         let t = horn_absolute_orientation(&from, &to, false)?;
         aligned = transform(&aligned, &t);
     }
-    Ok(aligned)
+    let index = SurfaceIndex::new(&aligned, 4.0);
+    let max = params.max_distance_mm;
+    let sum: f64 = targets
+        .iter()
+        .map(|&p| index.closest(p, max).map_or(max, |(d, _)| d).powi(2))
+        .sum();
+    Ok((aligned, (sum / targets.len().max(1) as f64).sqrt()))
 }
 
 /// Per-activation ridge weights: `ridge` × each activation's diagonal entry of `G` (see

@@ -789,3 +789,38 @@ fn autosave_round_trips_and_restores_the_edits_onto_the_reloaded_scan() {
     autosave::remove(&path);
     assert!(autosave::find(&path).is_none());
 }
+
+/// Learning an expression in the editor: the fit comes back with the fitted face's residual per
+/// skin vertex (what the "fit residual" overlay colours) and the actuators that explain it.
+#[test]
+fn a_fit_in_the_editor_carries_its_residual_map() {
+    let mut worker = WorkerState::default();
+    let mut doc = Document::new(generic_face::build());
+    apply_with(&mut worker, &mut doc, Command::BuildFem);
+    apply_with(
+        &mut worker,
+        &mut doc,
+        Command::ApplyPreset("happiness".into()),
+    );
+    let fem = doc.fem.as_ref().expect("built");
+    let n = fem.surface.vertex_count();
+    let smile = fem.deformed_surface(&doc.edits.activations);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("smile.obj");
+    facesynth::io::write_mesh(&path, &smile).unwrap();
+    apply_with(&mut worker, &mut doc, Command::FitExpression(path));
+    assert!(doc.error.is_none(), "{:?}", doc.error);
+    let fit = doc.fit.as_ref().expect("fitted");
+    assert!(fit.rms_after_mm < 0.3 * fit.rms_before_mm, "{fit:?}");
+    assert_eq!(fit.residual_mm.len(), n);
+    let on: Vec<f64> = fit.residual_mm.iter().flatten().map(|r| r.abs()).collect();
+    assert!(on.len() > n / 2, "{} of {n} on the scan", on.len());
+    let close = on.iter().filter(|&&r| r < 0.5).count();
+    assert!(close > on.len() * 9 / 10, "{close} of {}", on.len());
+    let (leader, _) = &fit.contributions_mm[0];
+    assert!(
+        leader.starts_with("zygomatic_major") || leader.starts_with("cheek_raiser"),
+        "{:?}",
+        fit.contributions_mm
+    );
+}

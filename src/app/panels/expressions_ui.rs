@@ -109,6 +109,22 @@ pub fn expressions_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     ),
                 ),
                 (
+                    "moving part (mouth, cheeks, chin)",
+                    format!(
+                        "{:.2} mm → {:.2} mm",
+                        f.moving_rms_before_mm, f.moving_rms_after_mm
+                    ),
+                ),
+                (
+                    "explained by",
+                    f.contributions_mm
+                        .iter()
+                        .take(3)
+                        .map(|(n, c)| format!("{n} {c:.2}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                ),
+                (
                     "closest preset",
                     f.closest_preset
                         .as_ref()

@@ -13,6 +13,7 @@ pub fn view_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
         ui.selectable_value(&mut v.overlay, Overlay::Denoise, "denoise");
         ui.selectable_value(&mut v.overlay, Overlay::Registration, "registration");
         ui.selectable_value(&mut v.overlay, Overlay::Displacement, "displacement");
+        ui.selectable_value(&mut v.overlay, Overlay::FitResidual, "fit residual");
         ui.selectable_value(&mut v.overlay, Overlay::ShapeIndex, "shape index");
     });
     if app.doc.fem.is_some() {
