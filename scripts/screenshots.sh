@@ -23,6 +23,8 @@ run cara1_shape_index "$scan" --denoise --detect
 run cara1_registration "$scan" --denoise --register
 run cara1_happiness "$scan" --denoise --register --expression happiness --show displacement
 run cara1_smile_muscles "$scan" --denoise --register --expression broad_smile --muscles --yaw 20
+# The smile learned from cara1_sonrisa, coloured by its distance to that scan (fit residual).
+run cara1_fit_sonrisa "$scan" --denoise --register --fit "$(dirname "$scan")/cara1_sonrisa.wrl"
 run generic_happiness --expression happiness --muscles --show displacement
 run generic_cutaway --expression broad_smile --layers cutaway --yaw 40 --pitch 10
 for e in sadness surprise anger disgust fear scorn pain; do

@@ -182,6 +182,45 @@ fn viewer_shows_the_denoise_heat_map_with_spike_markers() {
     let _ = std::fs::copy(&png, keep.join("cara1_denoise.png"));
 }
 
+/// `view --fit`: the smile learned from cara1_sonrisa, coloured by its distance to that scan.
+/// Plain shading is grey and the markers are red, green and yellow; the residual ramp runs
+/// from dark blue (0 mm) through green to yellow (5 mm), so the face shows saturated blue
+/// where the fit lies on the scan.
+#[test]
+fn viewer_shows_the_fit_residual_of_a_real_smile() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = common::gavab("cara1_frontal1.wrl");
+    let smile = common::gavab("cara1_sonrisa.wrl");
+    let (scan, smile) = (scan.to_str().unwrap(), smile.to_str().unwrap());
+    let blue = |png: &Path| {
+        let img = image::open(png).unwrap().to_rgb8();
+        let (w, h) = img.dimensions();
+        let mut count = 0usize;
+        // The viewport right of the side panel, left of the legend.
+        for y in (0..h).step_by(2) {
+            for x in (w / 2..w * 9 / 10).step_by(2) {
+                let [r, _, b] = img.get_pixel(x, y).0.map(i32::from);
+                count += usize::from(b > r + 30 && b > 80);
+            }
+        }
+        count
+    };
+    let png = dir.path().join("fit.png");
+    let base = ["view", scan, "--denoise", "--register", "--fit", smile];
+    screenshot(&base, &png);
+    let plain = dir.path().join("plain.png");
+    screenshot(&[&base[..], &["--show", "plain"]].concat(), &plain);
+    // Measured: 10,282 blue pixels with the residual, 525 in plain shading (the scan behind).
+    let (fit, shaded) = (blue(&png), blue(&plain));
+    assert!(
+        fit > 2000 && fit > 10 * shaded,
+        "{fit} vs {shaded} residual-blue pixels"
+    );
+    let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/screenshots");
+    let _ = std::fs::create_dir_all(&keep);
+    let _ = std::fs::copy(&png, keep.join("cara1_fit_sonrisa.png"));
+}
+
 /// Runs `facesynth view --session FILE` (the session's own screenshots, no `--screenshot`).
 fn run_session(session: &Path) {
     run_in_window(&["view".as_ref(), "--session".as_ref(), session.as_os_str()]);
