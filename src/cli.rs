@@ -486,6 +486,8 @@ fn face_region_distances(
     face.sort_unstable();
     face.dedup();
     let mut value = stats(&face);
+    // Inside the face a miss is a real gap; above the hairline it is expected.
+    value["unmatched_by_reason"] = json!(prepared.registration.unmatched_by_reason(Some(&face)));
     for (name, vs) in parts {
         value["by_region"][name] = stats(vs);
     }

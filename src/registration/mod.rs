@@ -196,6 +196,35 @@ impl DistanceStats {
     }
 }
 
+/// Why a generic vertex was filled in rather than projected onto the scan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Unmatched {
+    /// Its ray missed the scan, in a patch of misses open to the generic face's outer border:
+    /// beyond the scan's edge (hair the scanner did not see, the neck or ears cut off).
+    OutsideScan,
+    /// Its ray missed the scan in a patch enclosed by projected vertices: a hole in the scan
+    /// (eyes, nostrils, a dropout).
+    Hole,
+    /// The ray hit the scan more than [`RegistrationParams::max_offset_mm`] from the warped
+    /// face: hair, an ear or a collar in front of or behind the skin.
+    FarSurface,
+    /// Its offset differs from its neighbours' median by more than
+    /// [`RegistrationParams::outlier_mm`]: a spike or a strand of hair.
+    Outlier,
+}
+
+impl Unmatched {
+    pub fn name(self) -> &'static str {
+        match self {
+            Unmatched::OutsideScan => "outside_scan",
+            Unmatched::Hole => "hole",
+            Unmatched::FarSurface => "far_surface",
+            Unmatched::Outlier => "outlier",
+        }
+    }
+}
+
 /// What [`register`] returns.
 #[derive(Debug, Clone)]
 pub struct RegistrationResult {
@@ -209,6 +238,8 @@ pub struct RegistrationResult {
     pub landmark_residual_mm: Vec<(FeaturePoint, f64)>,
     /// Generic vertices whose position is filled in, not projected (scan holes, spikes, …).
     pub unmatched_vertices: Vec<u32>,
+    /// Why, per vertex of `unmatched_vertices`.
+    pub unmatched_reasons: Vec<Unmatched>,
     /// Triangles of the planar warp that the targets turned over (0 for sane landmarks).
     pub folded_warp_triangles: usize,
     /// Distance of each registered vertex to the scan surface.
@@ -228,6 +259,26 @@ impl RegistrationResult {
         1.0 - self.unmatched_vertices.len() as f64 / n as f64
     }
 
+    /// How many vertices were left unmatched for each reason (of `among`, a sorted vertex
+    /// list, when given).
+    pub fn unmatched_by_reason(&self, among: Option<&[usize]>) -> BTreeMap<&'static str, usize> {
+        let mut out: BTreeMap<&'static str, usize> = [
+            Unmatched::OutsideScan,
+            Unmatched::Hole,
+            Unmatched::FarSurface,
+            Unmatched::Outlier,
+        ]
+        .iter()
+        .map(|r| (r.name(), 0))
+        .collect();
+        for (&v, r) in self.unmatched_vertices.iter().zip(&self.unmatched_reasons) {
+            if among.is_none_or(|a| a.binary_search(&(v as usize)).is_ok()) {
+                *out.entry(r.name()).or_default() += 1;
+            }
+        }
+        out
+    }
+
     /// The JSON report of `facesynth register`.
     pub fn report_json(&self) -> serde_json::Value {
         let residuals: BTreeMap<&str, f64> = self
@@ -244,6 +295,7 @@ impl RegistrationResult {
                 "max": round4(self.surface_distance_mm.max),
             },
             "unmatched_vertices": self.unmatched_vertices.len(),
+            "unmatched_by_reason": self.unmatched_by_reason(None),
             "vertices": self.mesh.vertex_count(),
             "matched_fraction": round4(self.matched_fraction()),
             "folded_warp_triangles": self.folded_warp_triangles,
@@ -390,18 +442,22 @@ pub fn register_points(
     let n = warped.len();
     let mut offset = vec![0.0f64; n];
     let mut matched = vec![false; n];
+    let mut reason: Vec<Option<Unmatched>> = vec![None; n];
     let mut hit_local = vec![DVec3::ZERO; n];
     for (v, q) in warped.iter().enumerate() {
         let theta = q.x.atan2(q.z);
         let r = q.x.hypot(q.z);
-        if let Some(hit) = projector.cast(theta, q.y)
-            && (hit.radius - r).abs() <= params.max_offset_mm
-        {
-            offset[v] = hit.radius - r;
-            matched[v] = true;
-            hit_local[v] = hit.local;
+        match projector.cast(theta, q.y) {
+            Some(hit) if (hit.radius - r).abs() <= params.max_offset_mm => {
+                offset[v] = hit.radius - r;
+                matched[v] = true;
+                hit_local[v] = hit.local;
+            }
+            Some(_) => reason[v] = Some(Unmatched::FarSurface),
+            None => reason[v] = Some(Unmatched::Hole),
         }
     }
+    mark_outside_scan(&generic.mesh, &topo, &mut reason);
     // Offsets far from their neighbours' median are spikes, hair or wrong layers.
     let mut outliers = Vec::new();
     let mut scratch = Vec::new();
@@ -422,15 +478,18 @@ pub fn register_points(
     }
     for &v in &outliers {
         matched[v] = false;
+        reason[v] = Some(Unmatched::Outlier);
     }
     harmonic_fill(&topo, &matched, &mut offset);
     let mut positions = Vec::with_capacity(n);
     let mut unmatched_vertices = Vec::new();
+    let mut unmatched_reasons = Vec::new();
     for v in 0..n {
         let local = if matched[v] {
             hit_local[v]
         } else {
             unmatched_vertices.push(v as u32);
+            unmatched_reasons.push(reason[v].unwrap_or(Unmatched::Outlier));
             let q = warped[v];
             let r = q.x.hypot(q.z);
             let s = (r + offset[v]).max(0.0) / r.max(1e-12);
@@ -461,10 +520,41 @@ pub fn register_points(
         rigid_rms_mm,
         landmark_residual_mm,
         unmatched_vertices,
+        unmatched_reasons,
         folded_warp_triangles: warp.folded_triangles(),
         surface_distance_mm: DistanceStats::of(&distances),
         millis: start.elapsed().as_secs_f64() * 1e3,
     })
+}
+
+/// Turns the misses ([`Unmatched::Hole`] so far) that connect, through misses, to the
+/// generic face's outer border (its longest boundary loop) into [`Unmatched::OutsideScan`]:
+/// a patch of misses enclosed by projected vertices is a hole in the scan, one open to the
+/// border lies beyond the scan's edge.
+fn mark_outside_scan(mesh: &Mesh, topo: &Topology, reason: &mut [Option<Unmatched>]) {
+    let Some(outer) = crate::generic_face::boundary_loops(mesh)
+        .into_iter()
+        .max_by_key(|l| l.len())
+    else {
+        return;
+    };
+    let mut queue: Vec<usize> = outer
+        .iter()
+        .map(|&v| v as usize)
+        .filter(|&v| reason[v] == Some(Unmatched::Hole))
+        .collect();
+    for &v in &queue {
+        reason[v] = Some(Unmatched::OutsideScan);
+    }
+    while let Some(v) = queue.pop() {
+        for &u in topo.neighbours(v) {
+            let u = u as usize;
+            if reason[u] == Some(Unmatched::Hole) {
+                reason[u] = Some(Unmatched::OutsideScan);
+                queue.push(u);
+            }
+        }
+    }
 }
 
 fn median(v: &mut [f64]) -> f64 {

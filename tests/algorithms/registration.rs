@@ -535,3 +535,51 @@ fn closest_point_index_handles_a_far_away_triangle_and_far_queries() {
     let (d, _) = index.closest(p, 400.0).unwrap();
     assert!((d - 300.0).abs() < 1e-9, "{d}");
 }
+
+/// Why vertices are unmatched: the generic face registered onto itself with a hole punched
+/// around the left cheek point and the top cut off 10 mm below the forehead point. The hole's
+/// vertices are `hole`, the ones above the cut `outside_scan`, and the rest are projected.
+#[test]
+fn unmatched_vertices_say_hole_or_outside_the_scan() {
+    let generic = facesynth::generic_face::build();
+    let lm = generic.landmarks();
+    let cheek = lm.get(FeaturePoint::CheekLeft);
+    let top = lm.get(FeaturePoint::Forehead).y - 10.0;
+    let mut scan = generic.mesh.clone();
+    let keep: Vec<bool> = scan
+        .positions_mm
+        .iter()
+        .map(|p| p.distance(cheek) > 10.0 && p.y < top)
+        .collect();
+    scan.retain_vertices(&keep);
+    let r = registration::register(&generic, &scan, &lm, &RegistrationParams::default()).unwrap();
+    let reason_of = |v: usize| {
+        r.unmatched_vertices
+            .iter()
+            .position(|&u| u as usize == v)
+            .map(|k| r.unmatched_reasons[k])
+    };
+    let (mut in_hole, mut above) = (0, 0);
+    for (v, p) in generic.mesh.positions_mm.iter().enumerate() {
+        if p.distance(cheek) < 6.0 {
+            assert_eq!(
+                reason_of(v),
+                Some(registration::Unmatched::Hole),
+                "v{v} {p}"
+            );
+            in_hole += 1;
+        } else if p.y > top + 3.0 {
+            assert_eq!(
+                reason_of(v),
+                Some(registration::Unmatched::OutsideScan),
+                "v{v} {p}"
+            );
+            above += 1;
+        } else if p.distance(cheek) > 14.0 && p.y < top - 3.0 {
+            assert_eq!(reason_of(v), None, "v{v} {p} unmatched inside the scan");
+        }
+    }
+    assert!(in_hole > 3 && above > 20, "{in_hole} {above}");
+    let counts = r.unmatched_by_reason(None);
+    assert_eq!(counts.values().sum::<usize>(), r.unmatched_vertices.len());
+}
