@@ -5,7 +5,9 @@
 //!
 //! * **Stable parts**, which expressions barely move, for the rigid alignment of an expression
 //!   scan: the upper forehead (more than 0.75 face heights above the nose tip, above the brows'
-//!   reach) and the nose (within 0.3 face widths of the tip).
+//!   reach) and the nose (within 0.3 face widths of the tip, and the bridge: within 0.2 face
+//!   widths of the inner-eye midpoint, the nasal bone under thin skin). The cheeks are left
+//!   out although they sit on bone: a smile raises them (AU6, `cheek_raiser`).
 //! * **Expression regions**, for per-region comparisons (`compare-expression`):
 //!   - *mouth*: the ellipse around the mouth-corner midpoint with semi-axes 0.75 face widths
 //!     (the corners sit near ±0.5) and 0.3 face heights: lips, philtrum, chin top;
@@ -51,10 +53,14 @@ impl Regions {
         let eye_right = mid(FeaturePoint::InnerEyeRight, FeaturePoint::OuterEyeRight);
         let eye_line = ((eye_left + eye_right) * 0.5).dot(frame.y);
         let mouth_line = mouth.dot(frame.y);
+        let bridge = mid(FeaturePoint::InnerEyeLeft, FeaturePoint::InnerEyeRight);
         let mut out = Regions::default();
         for (v, &p) in surface.positions_mm.iter().enumerate() {
             let from_tip = p - tip;
-            let nose = from_tip.length() < 0.3 * w;
+            // The nose: its tip and wings, and the bridge up to the inner eye corners (nasal
+            // bone under thin skin).
+            let nose = from_tip.length() < 0.3 * w
+                || ((p - bridge).length() < 0.2 * w && from_tip.dot(frame.y) > 0.0);
             if from_tip.dot(frame.y) > 0.75 * h {
                 out.forehead.push(v);
             } else if nose {
