@@ -53,20 +53,25 @@ use std::path::Path;
 use std::time::Instant;
 
 mod cylinder;
+mod delaunay;
 mod eval;
+mod fill;
 mod horn;
 #[cfg(test)]
 mod tests;
 mod warp;
 
 pub use cylinder::{CylinderFrame, CylinderHit, CylinderProjector};
+pub use delaunay::delaunay;
 pub use eval::{
     CHEEK_BEYOND_OUTER_EYE, FOREHEAD_ABOVE_BROWS_MM, GENERIC_CHEEK_X_MM, ScanEvaluation,
     TruthPoints, evaluate, truth_points,
 };
+pub use fill::Unmatched;
+use fill::{harmonic_fill, mark_outside_scan};
 pub use horn::horn_absolute_orientation;
+pub use warp::PlanarWarp;
 use warp::barycentric2;
-pub use warp::{PlanarWarp, delaunay};
 
 // ---------------------------------------------------------------------------------------------
 // Parameters and results
@@ -192,35 +197,6 @@ impl DistanceStats {
             mean: v.iter().sum::<f64>() / v.len() as f64,
             p95: v[rank],
             max: v[v.len() - 1],
-        }
-    }
-}
-
-/// Why a generic vertex was filled in rather than projected onto the scan.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Unmatched {
-    /// Its ray missed the scan, in a patch of misses open to the generic face's outer border:
-    /// beyond the scan's edge (hair the scanner did not see, the neck or ears cut off).
-    OutsideScan,
-    /// Its ray missed the scan in a patch enclosed by projected vertices: a hole in the scan
-    /// (eyes, nostrils, a dropout).
-    Hole,
-    /// The ray hit the scan more than [`RegistrationParams::max_offset_mm`] from the warped
-    /// face: hair, an ear or a collar in front of or behind the skin.
-    FarSurface,
-    /// Its offset differs from its neighbours' median by more than
-    /// [`RegistrationParams::outlier_mm`]: a spike or a strand of hair.
-    Outlier,
-}
-
-impl Unmatched {
-    pub fn name(self) -> &'static str {
-        match self {
-            Unmatched::OutsideScan => "outside_scan",
-            Unmatched::Hole => "hole",
-            Unmatched::FarSurface => "far_surface",
-            Unmatched::Outlier => "outlier",
         }
     }
 }
@@ -527,36 +503,6 @@ pub fn register_points(
     })
 }
 
-/// Turns the misses ([`Unmatched::Hole`] so far) that connect, through misses, to the
-/// generic face's outer border (its longest boundary loop) into [`Unmatched::OutsideScan`]:
-/// a patch of misses enclosed by projected vertices is a hole in the scan, one open to the
-/// border lies beyond the scan's edge.
-fn mark_outside_scan(mesh: &Mesh, topo: &Topology, reason: &mut [Option<Unmatched>]) {
-    let Some(outer) = crate::generic_face::boundary_loops(mesh)
-        .into_iter()
-        .max_by_key(|l| l.len())
-    else {
-        return;
-    };
-    let mut queue: Vec<usize> = outer
-        .iter()
-        .map(|&v| v as usize)
-        .filter(|&v| reason[v] == Some(Unmatched::Hole))
-        .collect();
-    for &v in &queue {
-        reason[v] = Some(Unmatched::OutsideScan);
-    }
-    while let Some(v) = queue.pop() {
-        for &u in topo.neighbours(v) {
-            let u = u as usize;
-            if reason[u] == Some(Unmatched::Hole) {
-                reason[u] = Some(Unmatched::OutsideScan);
-                queue.push(u);
-            }
-        }
-    }
-}
-
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
@@ -564,66 +510,5 @@ fn median(v: &mut [f64]) -> f64 {
         v[m]
     } else {
         0.5 * (v[m - 1] + v[m])
-    }
-}
-
-/// Harmonic fill: unknown values (`known[v] == false`) become the average of their neighbours
-/// (Gauss–Seidel to convergence), known values stay. Unknown vertices with no known vertex in
-/// their connected component get 0.
-fn harmonic_fill(topo: &Topology, known: &[bool], values: &mut [f64]) {
-    let n = values.len();
-    let unknown: Vec<usize> = (0..n).filter(|&v| !known[v]).collect();
-    if unknown.is_empty() {
-        return;
-    }
-    // Initial guess by breadth-first layers from the known rim (also finds orphans).
-    let mut set = known.to_vec();
-    let mut frontier: Vec<usize> = unknown.clone();
-    loop {
-        let mut next = Vec::new();
-        let mut newly = Vec::new();
-        for &v in &frontier {
-            let (mut sum, mut cnt) = (0.0, 0usize);
-            for &u in topo.neighbours(v) {
-                if set[u as usize] {
-                    sum += values[u as usize];
-                    cnt += 1;
-                }
-            }
-            if cnt > 0 {
-                newly.push((v, sum / cnt as f64));
-            } else {
-                next.push(v);
-            }
-        }
-        if newly.is_empty() {
-            for v in next {
-                values[v] = 0.0;
-            }
-            break;
-        }
-        for (v, x) in newly {
-            values[v] = x;
-            set[v] = true;
-        }
-        if next.is_empty() {
-            break;
-        }
-        frontier = next;
-    }
-    for _ in 0..5000 {
-        let mut change: f64 = 0.0;
-        for &v in &unknown {
-            let nb = topo.neighbours(v);
-            if nb.is_empty() {
-                continue;
-            }
-            let avg = nb.iter().map(|&u| values[u as usize]).sum::<f64>() / nb.len() as f64;
-            change = change.max((avg - values[v]).abs());
-            values[v] = avg;
-        }
-        if change < 1e-6 {
-            break;
-        }
     }
 }

@@ -1,7 +1,7 @@
 //! Tests of the registration steps: Horn's fit, the Delaunay warp, the cylindrical projection
 //! and the closest-point index.
 
-use super::warp::cross2;
+use super::delaunay::cross2;
 use super::*;
 use crate::mesh::closest_point_on_triangle;
 

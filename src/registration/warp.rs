@@ -1,6 +1,7 @@
 //! Step 2, planar deformation: the piecewise-linear warp over a Delaunay triangulation of
 //! the feature points and a ring of anchors.
 
+use super::delaunay::{cross2, delaunay};
 use super::*;
 
 /// A continuous piecewise-linear map of the plane: a triangulation of control points, each
@@ -184,10 +185,6 @@ fn affine_fit(src: &[DVec2], dst: &[DVec2]) -> Option<(glam::DMat2, DVec2)> {
     Some((m, cd - m * cs))
 }
 
-pub(super) fn cross2(a: DVec2, b: DVec2) -> f64 {
-    a.x * b.y - a.y * b.x
-}
-
 pub(super) fn barycentric2(p: DVec2, a: DVec2, b: DVec2, c: DVec2) -> Option<[f64; 3]> {
     let d = cross2(b - a, c - a);
     if d.abs() < 1e-300 {
@@ -196,67 +193,4 @@ pub(super) fn barycentric2(p: DVec2, a: DVec2, b: DVec2, c: DVec2) -> Option<[f6
     let l1 = cross2(p - a, c - a) / d;
     let l2 = cross2(b - a, p - a) / d;
     Some([1.0 - l1 - l2, l1, l2])
-}
-
-/// Delaunay triangulation (Bowyer–Watson), counter-clockwise triangles over input indices.
-/// Near-cocircular points are resolved consistently (a relative tolerance on the in-circle
-/// test), so symmetric configurations triangulate without overlaps.
-pub fn delaunay(points: &[DVec2]) -> Vec<[usize; 3]> {
-    let n = points.len();
-    if n < 3 {
-        return Vec::new();
-    }
-    let (lo, hi) = points
-        .iter()
-        .fold((points[0], points[0]), |(l, h), p| (l.min(*p), h.max(*p)));
-    let span = (hi - lo).max_element().max(1e-9);
-    let mid = (lo + hi) * 0.5;
-    let mut pts = points.to_vec();
-    pts.push(mid + DVec2::new(-40.0 * span, -30.0 * span));
-    pts.push(mid + DVec2::new(40.0 * span, -30.0 * span));
-    pts.push(mid + DVec2::new(0.0, 50.0 * span));
-    let mut tris: Vec<[usize; 3]> = vec![[n, n + 1, n + 2]];
-    let scale2 = span * span;
-    for i in 0..n {
-        let p = pts[i];
-        let mut bad = Vec::new();
-        for (k, t) in tris.iter().enumerate() {
-            if in_circumcircle(pts[t[0]], pts[t[1]], pts[t[2]], p, scale2) {
-                bad.push(k);
-            }
-        }
-        let mut edges: Vec<(usize, usize)> = Vec::new();
-        for &k in &bad {
-            let t = tris[k];
-            for e in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-                if let Some(j) = edges.iter().position(|&(a, b)| a == e.1 && b == e.0) {
-                    edges.swap_remove(j);
-                } else {
-                    edges.push(e);
-                }
-            }
-        }
-        for &k in bad.iter().rev() {
-            tris.swap_remove(k);
-        }
-        for (a, b) in edges {
-            if cross2(pts[b] - pts[a], p - pts[a]) > 0.0 {
-                tris.push([a, b, i]);
-            }
-        }
-    }
-    tris.retain(|t| t.iter().all(|&v| v < n));
-    tris
-}
-
-fn in_circumcircle(a: DVec2, b: DVec2, c: DVec2, p: DVec2, scale2: f64) -> bool {
-    let (ax, ay) = (a.x - p.x, a.y - p.y);
-    let (bx, by) = (b.x - p.x, b.y - p.y);
-    let (cx, cy) = (c.x - p.x, c.y - p.y);
-    let det = (ax * ax + ay * ay) * (bx * cy - cx * by) - (bx * bx + by * by) * (ax * cy - cx * ay)
-        + (cx * cx + cy * cy) * (ax * by - bx * ay);
-    let orient = cross2(b - a, c - a);
-    // Triangles are kept counter-clockwise, so det > 0 means inside; the tolerance is relative
-    // to the size of the configuration (det scales with length⁴).
-    det * orient.signum() > 1e-10 * scale2 * scale2
 }
