@@ -10,7 +10,9 @@ mod landmarks;
 mod recognition;
 
 pub use crate::view_options::{LayersShown, Overlay, ViewArgs};
-pub use args::{BenchWhat, Cli, Command, EvaluateArgs, LimitArgs, LocaliseArgs, UnitsArg};
+pub use args::{
+    BenchWhat, Cli, Command, EvaluateArgs, LimitArgs, LocaliseArgs, PairPoints, UnitsArg,
+};
 
 use landmarks::landmark_params;
 pub(crate) use landmarks::min_median;
@@ -201,52 +203,39 @@ pub fn run(cli: Cli) -> Result<Next> {
         Some(Command::FitExpression {
             neutral_scan,
             expression_scan,
-            landmarks,
-            expression_landmarks,
-            landmarks_dir,
+            points,
             out,
             name,
             muscles,
             residual_ply,
             residual_png,
-        }) => print_json(&fem::fit_expression(
-            &neutral_scan,
-            &expression_scan,
-            correction_for(
+        }) => {
+            let (landmarks, expression_landmarks) = points.files(&neutral_scan, &expression_scan);
+            print_json(&fem::fit_expression(
                 &neutral_scan,
-                landmarks.as_deref(),
-                landmarks_dir.as_deref(),
-            )
-            .as_deref(),
-            correction_for(
                 &expression_scan,
+                landmarks.as_deref(),
                 expression_landmarks.as_deref(),
-                landmarks_dir.as_deref(),
-            )
-            .as_deref(),
-            &fem::FitOutputs {
-                preset: &out,
-                residual_ply: residual_ply.as_deref(),
-                residual_png: residual_png.as_deref(),
-            },
-            name.as_deref(),
-            muscles.as_deref(),
-        )?),
+                &fem::FitOutputs {
+                    preset: &out,
+                    residual_ply: residual_ply.as_deref(),
+                    residual_png: residual_png.as_deref(),
+                },
+                name.as_deref(),
+                muscles.as_deref(),
+            )?)
+        }
         Some(Command::CompareExpression {
             neutral_scan,
             real_expression_scan,
             preset,
             presets: _,
             preset_file,
-            landmarks,
-            expression_landmarks,
-            landmarks_dir,
+            points,
             report,
         }) => {
-            let dir = landmarks_dir.as_deref();
-            let landmarks = correction_for(&neutral_scan, landmarks.as_deref(), dir);
-            let expression_landmarks =
-                correction_for(&real_expression_scan, expression_landmarks.as_deref(), dir);
+            let (landmarks, expression_landmarks) =
+                points.files(&neutral_scan, &real_expression_scan);
             let inputs = compare::CompareInputs {
                 neutral: &neutral_scan,
                 expression: &real_expression_scan,

@@ -226,18 +226,8 @@ pub enum Command {
     FitExpression {
         neutral_scan: PathBuf,
         expression_scan: PathBuf,
-        /// The neutral scan's 13 feature points (a landmark file); when omitted, the
-        /// correction file beside the scan, else detected.
-        #[arg(long)]
-        landmarks: Option<PathBuf>,
-        /// The expression scan's feature points (start of the rigid alignment); when omitted,
-        /// the correction file beside it, else detected.
-        #[arg(long)]
-        expression_landmarks: Option<PathBuf>,
-        /// Folder of correction files `<scan stem>.landmarks.json` for both scans (default:
-        /// beside each scan).
-        #[arg(long, value_name = "DIR")]
-        landmarks_dir: Option<PathBuf>,
+        #[command(flatten)]
+        points: PairPoints,
         /// Output preset file (.ron), loadable with `synthesize --presets`.
         #[arg(long)]
         out: PathBuf,
@@ -273,17 +263,8 @@ pub enum Command {
         /// Extra presets (RON, like `synthesize --presets`) added to the built-in ones.
         #[arg(long)]
         preset_file: Option<PathBuf>,
-        /// The neutral scan's 13 feature points (a landmark file); when omitted, the
-        /// correction file beside the scan, else detected.
-        #[arg(long)]
-        landmarks: Option<PathBuf>,
-        /// The expression scan's feature points; when omitted, the correction file beside it,
-        /// else detected.
-        #[arg(long)]
-        expression_landmarks: Option<PathBuf>,
-        /// Folder of correction files `<scan stem>.landmarks.json` for both scans.
-        #[arg(long, value_name = "DIR")]
-        landmarks_dir: Option<PathBuf>,
+        #[command(flatten)]
+        points: PairPoints,
         /// Also write the JSON here.
         #[arg(long)]
         report: Option<PathBuf>,
@@ -473,6 +454,39 @@ pub struct EvaluateArgs {
     /// a gallery or probe scan with one is posed by its points, not detected ones.
     #[arg(long, value_name = "DIR")]
     pub landmarks_dir: Option<PathBuf>,
+}
+
+/// Where the feature points of a neutral scan and an expression scan of the same person come
+/// from (`fit-expression`, `compare-expression`).
+#[derive(Debug, Clone, Default, Args)]
+pub struct PairPoints {
+    /// The neutral scan's 13 feature points (a landmark file); when omitted, the correction
+    /// file beside the scan, else detected.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// The expression scan's feature points (start of the rigid alignment); when omitted, the
+    /// correction file beside it, else detected.
+    #[arg(long)]
+    pub expression_landmarks: Option<PathBuf>,
+    /// Folder of correction files `<scan stem>.landmarks.json` for both scans (default: beside
+    /// each scan).
+    #[arg(long, value_name = "DIR")]
+    pub landmarks_dir: Option<PathBuf>,
+}
+
+impl PairPoints {
+    /// The landmark files of (neutral, expression): given, else the correction beside each.
+    pub fn files(
+        &self,
+        neutral: &std::path::Path,
+        expression: &std::path::Path,
+    ) -> (Option<PathBuf>, Option<PathBuf>) {
+        let dir = self.landmarks_dir.as_deref();
+        (
+            crate::pipeline::correction_for(neutral, self.landmarks.as_deref(), dir),
+            crate::pipeline::correction_for(expression, self.expression_landmarks.as_deref(), dir),
+        )
+    }
 }
 
 /// What `facesynth bench` measures.
