@@ -495,6 +495,12 @@ pub fn fit_expression(
         // What each actuator moves of the fitted face (RMS along the normals, mm), largest
         // first: comparable across muscles, soft-tissue loads and the jaw, unlike activations.
         "contributions_mm": contributions,
+        // The same as shares per group of actuators (smile, lip_raise, lip_depress, brows,
+        // jaw, other): which kind of motion explains the expression.
+        "contribution_share": crate::fem::fit::contribution_shares(&names, &fit.contributions_mm)
+            .into_iter()
+            .map(|(g, s)| (g, round(s, 3)))
+            .collect::<std::collections::BTreeMap<_, _>>(),
         "rms_model_to_neutral_scan_mm": fit.rms_neutral_scan_mm.map(|r| round(r, 4)),
         "repairs": repairs,
         "closest_preset": closest,

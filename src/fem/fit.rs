@@ -111,6 +111,53 @@ pub struct Alignment {
 /// lower forehead, which the forehead part excludes; cara1: 0.3–0.6 mm).
 pub const STABLE_PART_MAX_RMS_MM: f64 = 2.5;
 
+/// The built-in actuators grouped by what they do (FACS action units), for
+/// [`contribution_shares`]: `smile` zygomatic major (AU12) and the soft-tissue loads that come
+/// with it (cheek raiser and lower-lid bulge AU6, buccal bulge, nasolabial fold); `lip_raise`
+/// the levators (AU9/10); `lip_depress` the angular depressor (AU15); `brows` frontalis and
+/// corrugator (AU1/2/4); `jaw` (AU26/27/29/30). Other names (user-defined muscles): `other`.
+pub fn actuator_group(name: &str) -> &'static str {
+    let groups: [(&str, &[&str]); 5] = [
+        (
+            "smile",
+            &[
+                "zygomatic_major",
+                "cheek_raiser",
+                "buccal_bulge",
+                "infraorbital_bulge",
+                "nasolabial_fold",
+            ],
+        ),
+        ("lip_raise", &["labii_nasi", "inner_labii_nasi"]),
+        ("lip_depress", &["angular_depressor"]),
+        (
+            "brows",
+            &["frontalis", "secondary_frontalis", "lateral_corrugator"],
+        ),
+        ("jaw", &["jaw_"]),
+    ];
+    groups
+        .iter()
+        .find(|(_, prefixes)| prefixes.iter().any(|p| name.starts_with(p)))
+        .map_or("other", |(g, _)| g)
+}
+
+/// Each group's share of a fit's motion ([`FitResult::contributions_mm`] squared and summed
+/// per [`actuator_group`], normalised to 1); empty when nothing moved.
+pub fn contribution_shares(
+    names: &[String],
+    contributions_mm: &[f64],
+) -> std::collections::BTreeMap<&'static str, f64> {
+    let total: f64 = contributions_mm.iter().map(|c| c * c).sum();
+    let mut out = std::collections::BTreeMap::new();
+    if total > 0.0 {
+        for (name, c) in names.iter().zip(contributions_mm) {
+            *out.entry(actuator_group(name)).or_insert(0.0) += c * c / total;
+        }
+    }
+    out
+}
+
 /// Top of the residual maps' colour range (`fit-expression --residual-png`, the editor's fit
 /// residual overlay), mm: a fit is good where it stays well below, scanner noise and
 /// registration error are ~0.5–1.5 mm.
@@ -630,6 +677,26 @@ mod tests {
         }
         let far = signed_residuals(&face, &along(20.0), 8.0);
         assert!(far.iter().filter(|x| x.is_some()).count() < face.vertex_count() / 20);
+    }
+
+    /// Every built-in actuator belongs to a named group (none falls to `other`), the smile
+    /// group holds zygomatic major and the cheek loads, and the shares sum to 1.
+    #[test]
+    fn built_in_actuators_are_grouped_and_shares_sum_to_one() {
+        let set = crate::fem::muscles::MuscleSet::builtin();
+        let names = set.actuator_names();
+        assert_eq!(names.len(), 30);
+        for n in &names {
+            assert_ne!(actuator_group(n), "other", "{n}");
+        }
+        assert_eq!(actuator_group("zygomatic_major_left"), "smile");
+        assert_eq!(actuator_group("cheek_raiser_right"), "smile");
+        assert_eq!(actuator_group("jaw_forward"), "jaw");
+        assert_eq!(actuator_group("my_own_muscle"), "other");
+        let c: Vec<f64> = (0..names.len()).map(|i| (i % 4) as f64 * 0.3).collect();
+        let shares = contribution_shares(&names, &c);
+        assert!((shares.values().sum::<f64>() - 1.0).abs() < 1e-12, "{shares:?}");
+        assert!(contribution_shares(&names, &vec![0.0; names.len()]).is_empty());
     }
 
     #[test]
