@@ -695,7 +695,10 @@ mod tests {
         assert_eq!(actuator_group("my_own_muscle"), "other");
         let c: Vec<f64> = (0..names.len()).map(|i| (i % 4) as f64 * 0.3).collect();
         let shares = contribution_shares(&names, &c);
-        assert!((shares.values().sum::<f64>() - 1.0).abs() < 1e-12, "{shares:?}");
+        assert!(
+            (shares.values().sum::<f64>() - 1.0).abs() < 1e-12,
+            "{shares:?}"
+        );
         assert!(contribution_shares(&names, &vec![0.0; names.len()]).is_empty());
     }
 
