@@ -432,7 +432,7 @@ pub fn register(
 }
 
 /// The registered face's distance to the scan per face region (`fem::regions`), the forehead
-/// cut at the forehead feature point (the hairline estimate): inside the face, where the
+/// cut at the scan's forehead feature point (the hairline estimate) and at the temples: inside the face, where the
 /// registration must lie on the scan, against above the hairline, where hair and the scan's
 /// edge leave filled vertices off it by design.
 fn face_region_distances(
@@ -441,15 +441,24 @@ fn face_region_distances(
 ) -> Result<serde_json::Value> {
     let mesh = &prepared.registration.mesh;
     let regions = crate::fem::regions::Regions::of(mesh, &generic.feature_vertices)?;
-    let hairline =
-        mesh.positions_mm[generic.feature_vertices[crate::FeaturePoint::Forehead.index()] as usize];
-    let up = (hairline
-        - mesh.positions_mm[generic.feature_vertices[crate::FeaturePoint::Chin.index()] as usize])
-        .normalize_or_zero();
-    let (forehead, hair): (Vec<usize>, Vec<usize>) = regions
-        .forehead
-        .iter()
-        .partition(|&&v| (mesh.positions_mm[v] - hairline).dot(up) <= 0.0);
+    // The scan's own forehead point (the detector's hairline: where smooth skin ends), not the
+    // registered generic face's, which the warp does not move onto it (a border point).
+    let hairline = prepared.landmarks.get(crate::FeaturePoint::Forehead);
+    let up = (hairline - prepared.landmarks.get(crate::FeaturePoint::Chin)).normalize_or_zero();
+    // Laterally the forehead ends at the temples: between the outer eye corners (temporal
+    // lines), beyond which hair often covers the scan.
+    let lm = &prepared.landmarks;
+    let across = (lm.get(crate::FeaturePoint::OuterEyeLeft)
+        - lm.get(crate::FeaturePoint::OuterEyeRight))
+    .normalize_or_zero();
+    let mid = (lm.get(crate::FeaturePoint::OuterEyeLeft)
+        + lm.get(crate::FeaturePoint::OuterEyeRight))
+        * 0.5;
+    let half_width = (lm.get(crate::FeaturePoint::OuterEyeLeft) - mid).length();
+    let (forehead, hair): (Vec<usize>, Vec<usize>) = regions.forehead.iter().partition(|&&v| {
+        let p = mesh.positions_mm[v];
+        (p - hairline).dot(up) <= 0.0 && (p - mid).dot(across).abs() <= half_width
+    });
     let index = crate::mesh::SurfaceIndex::new(&prepared.denoised, 4.0);
     let r4 = |x: f64| (x * 1e4).round() / 1e4;
     let stats = |vs: &[usize]| {
@@ -480,7 +489,7 @@ fn face_region_distances(
     for (name, vs) in parts {
         value["by_region"][name] = stats(vs);
     }
-    value["above_hairline"] = stats(&hair);
+    value["above_hairline_or_temples"] = stats(&hair);
     Ok(value)
 }
 

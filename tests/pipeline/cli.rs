@@ -233,9 +233,9 @@ fn facing_and_up_give_the_scan_axes() {
             "{key}: {x} vs {y}"
         );
     }
-    // Inside the face (below the detected hairline) the registered face lies on the real
-    // scan: measured mean 0.25 mm, p95 0.0 mm over 1,601 vertices; above the hairline (hair,
-    // the scan's top edge) mean 5.9 mm.
+    // Inside the face (below the detected hairline, between the temples) the registered face
+    // lies on the real scan: measured mean 0.07 mm, p95 0.0 mm over 1,603 vertices, 19 of
+    // them beyond the scan's edge; above the hairline or beyond the temples mean 6.9 mm.
     let face = &a["face_region_distance_mm"];
     let (mean, p95) = (
         face["mean"].as_f64().unwrap(),
@@ -244,7 +244,7 @@ fn facing_and_up_give_the_scan_axes() {
     assert!(mean <= 1.0 && p95 <= 3.0, "{face}");
     assert_eq!(face["by_region"].as_object().unwrap().len(), 6, "{face}");
     assert!(
-        face["above_hairline"]["mean"].as_f64().unwrap() > mean,
+        face["above_hairline_or_temples"]["mean"].as_f64().unwrap() > mean,
         "{face}"
     );
     let out = facesynth(&["landmarks", t, "--facing", "+z", "--up", "-z"]);
