@@ -11,7 +11,8 @@ mod recognition;
 
 pub use crate::view_options::{LayersShown, Overlay, ViewArgs};
 pub use args::{
-    BenchWhat, Cli, Command, EvaluateArgs, LimitArgs, LocaliseArgs, PairPoints, UnitsArg,
+    BenchWhat, Cli, Command, EvaluateArgs, LimitArgs, LocaliseArgs, PairPoints, ScanPoints,
+    UnitsArg,
 };
 
 use landmarks::landmark_params;
@@ -19,7 +20,6 @@ pub(crate) use landmarks::min_median;
 pub use landmarks::{bench_landmarks, landmarks};
 pub use recognition::{augment, evaluate};
 
-use crate::pipeline::correction_for;
 use crate::{denoise, generic_face, io};
 use anyhow::{Context, Result};
 use serde_json::json;
@@ -154,20 +154,18 @@ pub fn run(cli: Cli) -> Result<Next> {
         }
         Some(Command::Register {
             scan,
-            landmarks,
-            landmarks_dir,
+            points,
             out,
             report,
         }) => print_json(&register(
             &scan,
-            correction_for(&scan, landmarks.as_deref(), landmarks_dir.as_deref()).as_deref(),
+            points.file(&scan).as_deref(),
             out.as_deref(),
             report.as_deref(),
         )?),
         Some(Command::Synthesize {
             scan,
-            landmarks,
-            landmarks_dir,
+            points,
             out,
             expressions,
             presets,
@@ -175,9 +173,7 @@ pub fn run(cli: Cli) -> Result<Next> {
             png,
         }) => print_json(&fem::synthesize(
             scan.as_deref(),
-            scan.as_deref()
-                .and_then(|s| correction_for(s, landmarks.as_deref(), landmarks_dir.as_deref()))
-                .as_deref(),
+            scan.as_deref().and_then(|s| points.file(s)).as_deref(),
             &out,
             &expressions,
             presets.as_deref(),
@@ -186,16 +182,13 @@ pub fn run(cli: Cli) -> Result<Next> {
         )?),
         Some(Command::ExportFem {
             scan,
-            landmarks,
-            landmarks_dir,
+            points,
             expression,
             vtk,
             presets,
         }) => print_json(&fem::export_fem(
             scan.as_deref(),
-            scan.as_deref()
-                .and_then(|s| correction_for(s, landmarks.as_deref(), landmarks_dir.as_deref()))
-                .as_deref(),
+            scan.as_deref().and_then(|s| points.file(s)).as_deref(),
             &expression,
             &vtk,
             presets.as_deref(),
@@ -418,7 +411,7 @@ pub fn register(
         io::write_mesh(path, &result.mesh)?;
     }
     let mut value = result.report_json();
-    value["face_region_distance_mm"] = face_region_distances(&prepared, &generic)?;
+    value["face_region_distance_mm"] = prepared.face_region_report(&generic.feature_vertices)?;
     value["landmarks_detected"] = json!(prepared.detection.is_some());
     value["landmarks_source"] = json!(prepared.landmark_source());
     value["landmarks_file"] = json!(prepared.given.as_ref().map(|(p, _)| p));
@@ -428,68 +421,6 @@ pub fn register(
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
-    Ok(value)
-}
-
-/// The registered face's distance to the scan per face region (`fem::regions`), the forehead
-/// cut at the scan's forehead feature point (the hairline estimate) and at the temples: inside the face, where the
-/// registration must lie on the scan, against above the hairline, where hair and the scan's
-/// edge leave filled vertices off it by design.
-fn face_region_distances(
-    prepared: &crate::pipeline::PreparedScan,
-    generic: &generic_face::GenericFace,
-) -> Result<serde_json::Value> {
-    let mesh = &prepared.registration.mesh;
-    let regions = crate::fem::regions::Regions::of(mesh, &generic.feature_vertices)?;
-    // The scan's own forehead point (the detector's hairline: where smooth skin ends), not the
-    // registered generic face's, which the warp does not move onto it (a border point).
-    let hairline = prepared.landmarks.get(crate::FeaturePoint::Forehead);
-    let up = (hairline - prepared.landmarks.get(crate::FeaturePoint::Chin)).normalize_or_zero();
-    // Laterally the forehead ends at the temples: between the outer eye corners (temporal
-    // lines), beyond which hair often covers the scan.
-    let lm = &prepared.landmarks;
-    let across = (lm.get(crate::FeaturePoint::OuterEyeLeft)
-        - lm.get(crate::FeaturePoint::OuterEyeRight))
-    .normalize_or_zero();
-    let mid = (lm.get(crate::FeaturePoint::OuterEyeLeft)
-        + lm.get(crate::FeaturePoint::OuterEyeRight))
-        * 0.5;
-    let half_width = (lm.get(crate::FeaturePoint::OuterEyeLeft) - mid).length();
-    let (forehead, hair): (Vec<usize>, Vec<usize>) = regions.forehead.iter().partition(|&&v| {
-        let p = mesh.positions_mm[v];
-        (p - hairline).dot(up) <= 0.0 && (p - mid).dot(across).abs() <= half_width
-    });
-    let index = crate::mesh::SurfaceIndex::new(&prepared.denoised, 4.0);
-    let r4 = |x: f64| (x * 1e4).round() / 1e4;
-    let stats = |vs: &[usize]| {
-        let d: Vec<f64> = vs
-            .iter()
-            .map(|&v| index.distance(mesh.positions_mm[v], 200.0))
-            .collect();
-        let s = crate::registration::DistanceStats::of(&d);
-        json!({"vertices": vs.len(), "mean": r4(s.mean), "p95": r4(s.p95), "max": r4(s.max)})
-    };
-    let parts: [(&str, &[usize]); 6] = [
-        ("forehead", &forehead),
-        ("brows", &regions.brows),
-        ("eyes", &regions.eyes),
-        ("nose", &regions.nose),
-        ("cheeks", &regions.cheeks),
-        ("mouth", &regions.mouth),
-    ];
-    let mut face: Vec<usize> = parts
-        .iter()
-        .flat_map(|(_, vs)| vs.iter().copied())
-        .collect();
-    face.sort_unstable();
-    face.dedup();
-    let mut value = stats(&face);
-    // Inside the face a miss is a real gap; above the hairline it is expected.
-    value["unmatched_by_reason"] = json!(prepared.registration.unmatched_by_reason(Some(&face)));
-    for (name, vs) in parts {
-        value["by_region"][name] = stats(vs);
-    }
-    value["above_hairline_or_temples"] = stats(&hair);
     Ok(value)
 }
 

@@ -13,7 +13,6 @@ use crate::fem::expressions::ExpressionSet;
 use crate::fem::muscles::MuscleSet;
 use crate::fem::{FaceModel, FemParams};
 use crate::generic_face::GenericFace;
-use crate::mesh::SurfaceIndex;
 use crate::registration::RegistrationParams;
 use crate::{Mesh, io};
 use eframe::egui;
@@ -107,39 +106,27 @@ impl WorkerState {
             return Err("build the FEM model first".into());
         };
         let e = |e: crate::Error| e.in_file(path).to_string();
-        let mut scan = io::read_mesh(path).map_err(|e| e.to_string())?;
-        crate::denoise::denoise(&mut scan, &DenoiseParams::default()).map_err(e)?;
         // The scan's own points start the rigid alignment when they can be found.
-        let points = crate::landmarks::detect(&scan, &Default::default())
-            .ok()
-            .map(|r| r.landmarks);
+        let (scan, points) = crate::pipeline::prepare_expression_scan(path, None).map_err(e)?;
+        let params = crate::fem::fit::FitParams::default();
         let fit = crate::fem::fit::fit_expression(
             model,
             neutral,
             &scan,
-            points.as_ref(),
+            points.as_ref().map(|p| &p.landmarks),
             presets,
-            &crate::fem::fit::FitParams::default(),
+            &params,
         )
         .map_err(e)?;
         let name = path
             .file_stem()
             .map_or_else(|| "fitted".into(), |s| s.to_string_lossy().into_owned());
-        let fitted = model.deformed_surface(&fit.activations).map_err(e)?;
-        let params = crate::fem::fit::FitParams::default();
-        let residual_mm =
-            crate::fem::fit::signed_residuals(&fitted, &fit.aligned_scan, params.max_distance_mm);
-        let mut contributions_mm: Vec<(String, f64)> = model
-            .actuator_names()
-            .into_iter()
-            .zip(fit.contributions_mm.iter().copied())
-            .filter(|(_, c)| *c > 0.0)
-            .collect();
-        contributions_mm.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let (_, residual_mm) = fit.residual_map(model, &params).map_err(e)?;
+        let names = model.actuator_names();
         Ok(FitState {
             name,
-            activations: model
-                .actuator_names()
+            contributions_mm: fit.ranked_contributions(&names),
+            activations: names
                 .into_iter()
                 .zip(&fit.activations)
                 .filter(|(_, a)| **a > 0.0)
@@ -152,7 +139,6 @@ impl WorkerState {
             moving_rms_before_mm: fit.moving_rms_before_mm,
             moving_rms_after_mm: fit.moving_rms_after_mm,
             residual_mm,
-            contributions_mm,
             millis: start.elapsed().as_secs_f64() * 1e3,
         })
     }
@@ -351,13 +337,7 @@ fn register(
     let result = crate::registration::register_points(generic, scan, &points, &params)
         .map_err(|e| e.to_string())?;
     // Per-vertex distance for the heat map; filled (unmatched) vertices have no measured value.
-    let index = SurfaceIndex::new(scan, params.grid_cell_mm);
-    let mut distance_mm: Vec<f64> = result
-        .mesh
-        .positions_mm
-        .iter()
-        .map(|&p| index.distance(p, params.max_offset_mm))
-        .collect();
+    let mut distance_mm = result.vertex_distance_mm.clone();
     for &v in &result.unmatched_vertices {
         distance_mm[v as usize] = f64::NAN;
     }

@@ -155,14 +155,8 @@ pub enum Command {
     Register {
         /// Scan mesh (.wrl .vrml .obj .ply .xyz .txt).
         scan: PathBuf,
-        /// The scan's 13 feature points (a landmark file); when omitted, the correction file
-        /// beside the scan, else detected.
-        #[arg(long)]
-        landmarks: Option<PathBuf>,
-        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
-        /// one there replaces detection unless --landmarks is given.
-        #[arg(long, value_name = "DIR")]
-        landmarks_dir: Option<PathBuf>,
+        #[command(flatten)]
+        points: ScanPoints,
         /// Write the registered generic face (.obj or .ply).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -175,14 +169,8 @@ pub enum Command {
     Synthesize {
         /// Neutral scan; without it the generic face is used.
         scan: Option<PathBuf>,
-        /// The scan's 13 feature points (a landmark file); when omitted, the correction file
-        /// beside the scan, else detected.
-        #[arg(long)]
-        landmarks: Option<PathBuf>,
-        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
-        /// one there replaces detection unless --landmarks is given.
-        #[arg(long, value_name = "DIR")]
-        landmarks_dir: Option<PathBuf>,
+        #[command(flatten)]
+        points: ScanPoints,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -203,14 +191,8 @@ pub enum Command {
     ExportFem {
         /// Neutral scan; without it the generic face is used.
         scan: Option<PathBuf>,
-        /// The scan's 13 feature points (a landmark file); when omitted, the correction file
-        /// beside the scan, else detected.
-        #[arg(long)]
-        landmarks: Option<PathBuf>,
-        /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan);
-        /// one there replaces detection unless --landmarks is given.
-        #[arg(long, value_name = "DIR")]
-        landmarks_dir: Option<PathBuf>,
+        #[command(flatten)]
+        points: ScanPoints,
         /// Preset name (e.g. happiness).
         #[arg(long)]
         expression: String,
@@ -454,6 +436,30 @@ pub struct EvaluateArgs {
     /// a gallery or probe scan with one is posed by its points, not detected ones.
     #[arg(long, value_name = "DIR")]
     pub landmarks_dir: Option<PathBuf>,
+}
+
+/// Where a scan's feature points come from (`register`, `synthesize`, `export-fem`).
+#[derive(Debug, Clone, Default, Args)]
+pub struct ScanPoints {
+    /// The scan's 13 feature points (a landmark file); when omitted, the correction file
+    /// beside the scan, else detected.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Folder of correction files `<scan stem>.landmarks.json` (default: beside the scan); one
+    /// there replaces detection unless --landmarks is given.
+    #[arg(long, value_name = "DIR")]
+    pub landmarks_dir: Option<PathBuf>,
+}
+
+impl ScanPoints {
+    /// The landmark file of `scan`: given, else the correction beside it (or in the folder).
+    pub fn file(&self, scan: &std::path::Path) -> Option<PathBuf> {
+        crate::pipeline::correction_for(
+            scan,
+            self.landmarks.as_deref(),
+            self.landmarks_dir.as_deref(),
+        )
+    }
 }
 
 /// Where the feature points of a neutral scan and an expression scan of the same person come

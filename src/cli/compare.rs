@@ -1,7 +1,7 @@
 //! `facesynth compare-expression`: the presets on a person's neutral face against a real
 //! expression scan of that person, per region ([`crate::fem::compare`]).
 
-use super::fem::{ScanPair, expression_set};
+use super::fem::{ScanPair, expression_set, round};
 use crate::fem::compare::compare_presets;
 use crate::fem::fit::FitParams;
 use crate::io;
@@ -43,17 +43,16 @@ pub fn compare_expression(
         wanted,
         &FitParams::default(),
     )?;
-    let round = |x: f64| (x * 1e3).round() / 1e3;
     let rows: Vec<serde_json::Value> = c
         .rows
         .iter()
         .map(|r| {
             let mut row = json!({
                 "preset": r.preset,
-                "whole_face_rms_mm": round(r.whole_face_rms_mm),
+                "whole_face_rms_mm": round(r.whole_face_rms_mm, 3),
             });
             for (name, v) in &r.region_rms_mm {
-                row[format!("{name}_rms_mm")] = json!(round(*v));
+                row[format!("{name}_rms_mm")] = json!(round(*v, 3));
             }
             row
         })
@@ -64,7 +63,7 @@ pub fn compare_expression(
         .map(|(region, (preset, rms, none))| {
             (
                 region,
-                json!({"preset": preset, "rms_mm": round(rms), "none_rms_mm": round(none)}),
+                json!({"preset": preset, "rms_mm": round(rms, 3), "none_rms_mm": round(none, 3)}),
             )
         })
         .collect();

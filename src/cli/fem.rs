@@ -4,7 +4,7 @@ use crate::fem::expressions::ExpressionSet;
 use crate::fem::muscles::MuscleSet;
 use crate::fem::{FaceModel, FemParams, HexMesh};
 use crate::generic_face::{self, GenericFace};
-use crate::{denoise, io};
+use crate::io;
 use anyhow::{Context, Result};
 use glam::DVec3;
 use serde_json::json;
@@ -60,7 +60,7 @@ pub fn solved_model(
     Ok((model, repairs))
 }
 
-fn round(x: f64, digits: i32) -> f64 {
+pub(super) fn round(x: f64, digits: i32) -> f64 {
     let s = 10f64.powi(digits);
     (x * s).round() / s
 }
@@ -340,21 +340,10 @@ impl ScanPair {
             feature_vertices: generic.feature_vertices,
         };
         let (model, repairs) = solved_model(&face, muscles)?;
-        let mut scan = io::read_mesh(expression)?;
-        denoise::denoise(&mut scan, &denoise::DenoiseParams::default())?;
-        let (scan_landmarks, expression_source) = match expression_landmarks {
-            Some(path) => {
-                let file = crate::pipeline::LandmarkFile::read(path)?;
-                (Some(file.landmarks), Some(file.source))
-            }
-            None => {
-                let found = crate::landmarks::detect(&scan, &Default::default())
-                    .ok()
-                    .map(|r| r.landmarks);
-                let source = found.map(|_| crate::pipeline::LandmarkSource::Detected);
-                (found, source)
-            }
-        };
+        let (scan, found) =
+            crate::pipeline::prepare_expression_scan(expression, expression_landmarks)?;
+        let expression_source = found.as_ref().map(|f| f.source());
+        let scan_landmarks = found.map(|f| f.landmarks);
         Ok(ScanPair {
             model,
             repairs,
@@ -435,9 +424,7 @@ pub fn fit_expression(
     let text = ron::ser::to_string_pretty(&preset, ron::ser::PrettyConfig::default())?;
     io::write_text_atomic(outputs.preset, &(text + "\n"))?;
     let residual = if outputs.residual_ply.is_some() || outputs.residual_png.is_some() {
-        let fitted = model.deformed_surface(&fit.activations)?;
-        let r =
-            crate::fem::fit::signed_residuals(&fitted, &fit.aligned_scan, params.max_distance_mm);
+        let (fitted, r) = fit.residual_map(&model, &params)?;
         if let Some(path) = outputs.residual_ply {
             let quality: Vec<f32> = r.iter().map(|d| d.unwrap_or(0.0) as f32).collect();
             io::write_atomic(path, |w| {
@@ -468,14 +455,9 @@ pub fn fit_expression(
     } else {
         None
     };
-    let mut ranked: Vec<(&String, f64)> = names
+    let contributions: Vec<serde_json::Value> = fit
+        .ranked_contributions(&names)
         .iter()
-        .zip(fit.contributions_mm.iter().copied())
-        .collect();
-    ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let contributions: Vec<serde_json::Value> = ranked
-        .iter()
-        .filter(|(_, c)| *c > 0.0)
         .map(|(n, c)| json!([n, round(*c, 3)]))
         .collect();
     let (closest, closest_rms) = fit

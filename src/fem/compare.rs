@@ -85,7 +85,7 @@ pub fn compare_presets(
     let rest = &model.surface.positions_mm;
     let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
     let neutral = neutral_index.as_ref();
-    let aligned = align_scan(
+    let (aligned, to_model) = align_scan(
         model,
         rest,
         neutral,
@@ -94,16 +94,8 @@ pub fn compare_presets(
         params,
     )?;
     let index = SurfaceIndex::new(&aligned, 4.0);
-    let alignment = check_alignment(
-        model,
-        rest,
-        neutral,
-        expression_scan,
-        &aligned,
-        &index,
-        params,
-    )?;
-    let vertices = vertices_on_scans(model, &index, neutral_index.as_ref(), params)?;
+    let alignment = check_alignment(model, rest, neutral, &to_model, &index, params)?;
+    let vertices = vertices_on_scans(model, &index, neutral, params)?;
     let regions = Regions::of(&model.surface, &model.feature_vertices)?;
     let used: Vec<bool> = {
         let mut u = vec![false; rest.len()];
@@ -126,27 +118,20 @@ pub fn compare_presets(
         Some(wanted) => wanted
             .iter()
             .map(|w| {
-                set.expressions
-                    .iter()
-                    .find(|e| &e.name == w)
-                    .ok_or_else(|| {
-                        crate::FemError::Definition(format!(
-                            "unknown preset `{w}` (known: {})",
-                            set.expressions
-                                .iter()
-                                .map(|e| e.name.as_str())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        ))
-                        .into()
-                    })
+                set.get(w).ok_or_else(|| {
+                    crate::FemError::Definition(format!(
+                        "unknown preset `{w}` (known: {})",
+                        set.names().join(", ")
+                    ))
+                    .into()
+                })
             })
             .collect::<Result<_>>()?,
     };
     let distance = |name: &str, u: &[DVec3]| -> Result<PresetDistance> {
         // Re-align on this preset's surface: its forehead and nose moved a little too.
         let surface: Vec<DVec3> = rest.iter().zip(u).map(|(p, d)| *p + *d).collect();
-        let again = align_scan(model, &surface, neutral, &aligned, None, params)?;
+        let (again, _) = align_scan(model, &surface, neutral, &aligned, None, params)?;
         let index = SurfaceIndex::new(&again, 4.0);
         let rms = |vs: &[usize]| rms_to_scan(model, &index, vs, u, params.max_distance_mm);
         Ok(PresetDistance {

@@ -20,7 +20,7 @@ use super::expressions::ExpressionSet;
 use super::regions::Regions;
 use crate::feature_points::{FeaturePoint, Landmarks};
 use crate::mesh::SurfaceIndex;
-use crate::registration::horn_absolute_orientation;
+use crate::registration::{Similarity, horn_absolute_orientation};
 use crate::{FemError, Mesh, Result};
 use glam::DVec3;
 
@@ -87,6 +87,33 @@ pub struct FitResult {
     /// normal (what the fit sees), mm. Unlike the activations (forces, degrees, mm), these
     /// compare across actuators: the largest ones are what the expression was explained by.
     pub contributions_mm: Vec<f64>,
+}
+
+impl FitResult {
+    /// The actuators that moved the face (`names` in model order), largest contribution first:
+    /// (name, [`FitResult::contributions_mm`]).
+    pub fn ranked_contributions(&self, names: &[String]) -> Vec<(String, f64)> {
+        let mut out: Vec<(String, f64)> = names
+            .iter()
+            .cloned()
+            .zip(self.contributions_mm.iter().copied())
+            .filter(|(_, c)| *c > 0.0)
+            .collect();
+        out.sort_by(|a, b| b.1.total_cmp(&a.1));
+        out
+    }
+
+    /// The fitted face of `model` and its signed distance to the aligned scan per vertex
+    /// ([`signed_residuals`] within [`FitParams::max_distance_mm`]): the residual map.
+    pub fn residual_map(
+        &self,
+        model: &FaceModel,
+        params: &FitParams,
+    ) -> Result<(Mesh, Vec<Option<f64>>)> {
+        let fitted = model.deformed_surface(&self.activations)?;
+        let residual = signed_residuals(&fitted, &self.aligned_scan, params.max_distance_mm);
+        Ok((fitted, residual))
+    }
 }
 
 /// The rigid alignment of the expression scan onto the model ([`align_scan`]), as reported.
@@ -186,18 +213,7 @@ fn part_rms(points: &[DVec3], index: &SurfaceIndex, max_mm: f64) -> (f64, usize)
     (rms, d.len())
 }
 
-/// The rigid motion taking `from` to `to` (same vertices, moved rigidly), as an angle in
-/// degrees and a translation.
-fn rigid_motion(from: &Mesh, to: &Mesh) -> Result<(f64, [f64; 3])> {
-    let step = (from.vertex_count() / 200).max(1);
-    let a: Vec<DVec3> = from.positions_mm.iter().step_by(step).copied().collect();
-    let b: Vec<DVec3> = to.positions_mm.iter().step_by(step).copied().collect();
-    let t = horn_absolute_orientation(&a, &b, false)?;
-    let (_, angle) = t.rotation.to_axis_angle();
-    Ok((angle.to_degrees(), t.translation_mm.to_array()))
-}
-
-fn transform(mesh: &Mesh, t: &crate::registration::Similarity) -> Mesh {
+fn transform(mesh: &Mesh, t: &Similarity) -> Mesh {
     Mesh::new(
         mesh.positions_mm.iter().map(|&p| t.apply(p)).collect(),
         mesh.faces.clone(),
@@ -231,7 +247,8 @@ fn stable_targets(
 
 /// Moves `scan` into the frame of `model` rigidly: Horn on the stable landmarks if given, then
 /// ICP of the stable region of `reference_mm` (the model surface, possibly already deformed by
-/// the current expression estimate: one position per surface vertex).
+/// the current expression estimate: one position per surface vertex). Returns the moved scan
+/// and the rigid transform that moved it.
 ///
 /// With the neutral scan (`neutral`, its index) the ICP targets are the neutral scan's points
 /// under the model's stable vertices (closest points, within [`FitParams::max_distance_mm`]),
@@ -245,49 +262,68 @@ pub fn align_scan(
     scan: &Mesh,
     scan_landmarks: Option<&Landmarks>,
     params: &FitParams,
-) -> Result<Mesh> {
+) -> Result<(Mesh, Similarity)> {
     let (mut stable, nose) = stable_parts(model)?;
     stable.extend(nose);
     let targets = stable_targets(model, reference_mm, neutral, &stable, params);
-    let plain = icp(scan.clone(), &targets, params);
-    let Some(lm) = scan_landmarks else {
-        return plain.map(|(m, _)| m);
+    // The scan stays where it is and the targets are taken into its frame: one index for all
+    // rounds and both starts.
+    let index = SurfaceIndex::new(scan, 4.0);
+    let plain = icp(&index, Similarity::IDENTITY, &targets, params);
+    let best = match scan_landmarks {
+        None => plain?.0,
+        Some(lm) => {
+            // Points that expressions barely move: the outer eye corners ride up with the
+            // cheeks in a smile, and the forehead point is a border (hair line) estimate.
+            let stable_points = [
+                FeaturePoint::NoseTip,
+                FeaturePoint::InnerEyeLeft,
+                FeaturePoint::InnerEyeRight,
+                FeaturePoint::NoseCornerLeft,
+                FeaturePoint::NoseCornerRight,
+            ];
+            let from: Vec<DVec3> = stable_points.iter().map(|&p| lm.get(p)).collect();
+            let to: Vec<DVec3> = stable_points
+                .iter()
+                .map(|&p| reference_mm[model.feature_vertices[p.index()] as usize])
+                .collect();
+            let t = horn_absolute_orientation(&from, &to, false)?;
+            let started = icp(&index, t, &targets, params);
+            // Detected points can be wrong (a smile moves the nose corners, a failed detection
+            // puts them anywhere): the start whose ICP ends nearer the stable parts wins.
+            match (started, plain) {
+                (Ok(a), Ok(b)) => {
+                    if a.1 <= b.1 {
+                        a.0
+                    } else {
+                        b.0
+                    }
+                }
+                (Ok(a), Err(_)) => a.0,
+                (Err(e), _) => return Err(e),
+            }
+        }
     };
-    // Points that expressions barely move: the outer eye corners ride up with the cheeks in a
-    // smile, and the forehead point is a border (hair line) estimate.
-    let stable_points = [
-        FeaturePoint::NoseTip,
-        FeaturePoint::InnerEyeLeft,
-        FeaturePoint::InnerEyeRight,
-        FeaturePoint::NoseCornerLeft,
-        FeaturePoint::NoseCornerRight,
-    ];
-    let from: Vec<DVec3> = stable_points.iter().map(|&p| lm.get(p)).collect();
-    let to: Vec<DVec3> = stable_points
-        .iter()
-        .map(|&p| reference_mm[model.feature_vertices[p.index()] as usize])
-        .collect();
-    let t = horn_absolute_orientation(&from, &to, false)?;
-    let started = icp(transform(scan, &t), &targets, params);
-    // Detected points can be wrong (a smile moves the nose corners, a failed detection puts
-    // them anywhere): the start whose ICP ends nearer the stable parts wins.
-    match (started, plain) {
-        (Ok(a), Ok(b)) => Ok(if a.1 <= b.1 { a.0 } else { b.0 }),
-        (Ok(a), Err(_)) => Ok(a.0),
-        (Err(e), Ok(_)) | (Err(e), Err(_)) => Err(e),
-    }
+    Ok((transform(scan, &best), best))
 }
 
-/// Trimmed ICP of `aligned` onto the stable `targets` ([`FitParams::icp_rounds`] rounds): the
-/// moved scan and the RMS distance of all targets to it afterwards (a target with no scan
-/// point within [`FitParams::max_distance_mm`] counts as that far), mm.
-fn icp(mut aligned: Mesh, targets: &[DVec3], params: &FitParams) -> Result<(Mesh, f64)> {
+/// Trimmed ICP of the scan (`index`, in its own frame) onto the stable `targets` (model
+/// frame), from the scan-to-model transform `start`, [`FitParams::icp_rounds`] rounds: the
+/// final transform and the RMS distance of all targets to the moved scan (a target with no
+/// scan point within [`FitParams::max_distance_mm`] counts as that far), mm.
+fn icp(
+    index: &SurfaceIndex,
+    start: Similarity,
+    targets: &[DVec3],
+    params: &FitParams,
+) -> Result<(Similarity, f64)> {
+    let mut to_model = start;
     for _ in 0..params.icp_rounds {
-        let index = SurfaceIndex::new(&aligned, 4.0);
+        let to_scan = to_model.inverse();
         let mut pairs = Vec::new();
         for &p in targets {
-            if let Some((d, c)) = index.closest(p, params.max_distance_mm) {
-                pairs.push((d, c, p));
+            if let Some((d, c)) = index.closest(to_scan.apply(p), params.max_distance_mm) {
+                pairs.push((d, to_model.apply(c), p));
             }
         }
         // Trimmed ICP: pairs much farther apart than the typical one are hair, holes or
@@ -314,15 +350,18 @@ fn icp(mut aligned: Mesh, targets: &[DVec3], params: &FitParams) -> Result<(Mesh
             .into());
         }
         let t = horn_absolute_orientation(&from, &to, false)?;
-        aligned = transform(&aligned, &t);
+        to_model = to_model.then(&t);
     }
-    let index = SurfaceIndex::new(&aligned, 4.0);
+    let to_scan = to_model.inverse();
     let max = params.max_distance_mm;
     let sum: f64 = targets
         .iter()
-        .map(|&p| index.closest(p, max).map_or(max, |(d, _)| d).powi(2))
+        .map(|&p| {
+            let d = index.closest(to_scan.apply(p), max).map_or(max, |(d, _)| d);
+            d * d
+        })
         .sum();
-    Ok((aligned, (sum / targets.len().max(1) as f64).sqrt()))
+    Ok((to_model, (sum / targets.len().max(1) as f64).sqrt()))
 }
 
 /// Per-activation ridge weights: `ridge` × each activation's diagonal entry of `G` (see
@@ -389,16 +428,15 @@ pub(super) fn vertices_on_scans(
     Ok(vertices)
 }
 
-/// The rigid motion from `scan` to `aligned` and how well the stable parts agree with the
-/// aligned scan (`index`): the model's surface `surface_mm` (deformed by the expression
+/// The rigid motion `to_model` that aligned the scan, and how well the stable parts agree with
+/// the aligned scan (`index`): the model's surface `surface_mm` (deformed by the expression
 /// estimate) there, or with the neutral scan's index the neutral scan under it, as in
 /// [`align_scan`]. Errors naming the parts farther than [`STABLE_PART_MAX_RMS_MM`].
 pub(super) fn check_alignment(
     model: &FaceModel,
     surface_mm: &[DVec3],
     neutral: Option<&SurfaceIndex>,
-    scan: &Mesh,
-    aligned: &Mesh,
+    to_model: &Similarity,
     index: &SurfaceIndex,
     params: &FitParams,
 ) -> Result<Alignment> {
@@ -424,10 +462,9 @@ pub(super) fn check_alignment(
         ))
         .into());
     }
-    let (rotation_deg, translation_mm) = rigid_motion(scan, aligned)?;
     Ok(Alignment {
-        rotation_deg,
-        translation_mm,
+        rotation_deg: to_model.rotation.to_axis_angle().1.to_degrees(),
+        translation_mm: to_model.translation_mm.to_array(),
         forehead_rms_mm,
         nose_rms_mm,
         stable_vertices_on_scan: on_forehead + on_nose,
@@ -488,7 +525,7 @@ pub fn fit_expression(
     }
     let n = model.surface.vertex_count();
     let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
-    let mut aligned = align_scan(
+    let (mut aligned, mut to_model) = align_scan(
         model,
         &model.surface.positions_mm,
         neutral_index.as_ref(),
@@ -513,6 +550,7 @@ pub fn fit_expression(
         rms_before_mm,
         vec![0.0; model.actuator_count()],
         aligned.clone(),
+        to_model,
     );
     let mut activations = vec![0.0; m];
     let mut u = vec![DVec3::ZERO; n];
@@ -523,7 +561,7 @@ pub fn fit_expression(
             let reference: Vec<DVec3> = (0..n)
                 .map(|v| model.surface.positions_mm[v] + u[v])
                 .collect();
-            aligned = align_scan(
+            let (again, t) = align_scan(
                 model,
                 &reference,
                 neutral_index.as_ref(),
@@ -531,6 +569,8 @@ pub fn fit_expression(
                 None,
                 params,
             )?;
+            aligned = again;
+            to_model = to_model.then(&t);
             index = SurfaceIndex::new(&aligned, 4.0);
         }
         // Target displacement of each vertex: to its closest scan point from where it is now.
@@ -566,10 +606,10 @@ pub fn fit_expression(
         }
         let rms = rms_to_scan(model, &index, &vertices, &u, params.max_distance_mm);
         if rms < best.0 {
-            best = (rms, activations.clone(), aligned.clone());
+            best = (rms, activations.clone(), aligned.clone(), to_model);
         }
     }
-    let (rms_after_mm, activations, aligned) = best;
+    let (rms_after_mm, activations, aligned, to_model) = best;
     let index = SurfaceIndex::new(&aligned, 4.0);
     // How well the stable parts agree, on the fitted surface (the expression moves them a
     // little too).
@@ -585,8 +625,7 @@ pub fn fit_expression(
         model,
         &fitted,
         neutral_index.as_ref(),
-        expression_scan,
-        &aligned,
+        &to_model,
         &index,
         params,
     )?;

@@ -9,6 +9,7 @@ use crate::registration::{self, RegistrationParams, RegistrationResult};
 use crate::{Landmarks, Mesh, Result, io};
 use std::path::Path;
 
+mod face_region;
 mod landmark_file;
 mod review;
 mod transfer;
@@ -55,9 +56,7 @@ pub struct PreparedScan {
 impl PreparedScan {
     /// `detected`, `corrected` or `given`.
     pub fn landmark_source(&self) -> LandmarkSource {
-        self.given
-            .as_ref()
-            .map_or(LandmarkSource::Detected, |(_, f)| f.source)
+        source_of(&self.given)
     }
 }
 
@@ -80,7 +79,19 @@ pub struct ScanLandmarks {
     pub given: Option<(std::path::PathBuf, LandmarkFile)>,
 }
 
+/// Where points came from: the file's own source, or detection when no file was read.
+fn source_of(given: &Option<(std::path::PathBuf, LandmarkFile)>) -> LandmarkSource {
+    given
+        .as_ref()
+        .map_or(LandmarkSource::Detected, |(_, f)| f.source)
+}
+
 impl ScanLandmarks {
+    /// `detected`, `corrected` or `given`.
+    pub fn source(&self) -> LandmarkSource {
+        source_of(&self.given)
+    }
+
     /// The points the registration matches ([`registration_points`]).
     pub fn registration_points(&self) -> Vec<(crate::FeaturePoint, glam::DVec3)> {
         let borders_detected = self
@@ -96,6 +107,23 @@ impl ScanLandmarks {
 pub fn detect_scan(mut mesh: Mesh) -> Result<LandmarkReport> {
     denoise::denoise(&mut mesh, &DenoiseParams::default())?;
     landmarks::detect(&mesh, &LandmarkParams::default())
+}
+
+/// An expression scan for fitting or comparing with a neutral one: read, denoised, and its
+/// points read from `landmarks` (a bad file is an error) or detected (`None` when detection
+/// fails: the rigid alignment then starts from the stable parts alone).
+pub fn prepare_expression_scan(
+    path: &Path,
+    landmarks: Option<&Path>,
+) -> Result<(Mesh, Option<ScanLandmarks>)> {
+    let mut scan = crate::io::read_mesh(path)?;
+    denoise::denoise(&mut scan, &DenoiseParams::default())?;
+    let found = match scan_landmarks(&scan, landmarks) {
+        Ok(found) => Some(found),
+        Err(e) if landmarks.is_some() => return Err(e),
+        Err(_) => None,
+    };
+    Ok((scan, found))
 }
 
 /// The scan's feature points: read from `given`, else detected on the (denoised) mesh.

@@ -171,6 +171,15 @@ impl Similarity {
         }
     }
 
+    /// `next` after `self`: `p ↦ next.apply(self.apply(p))`.
+    pub fn then(&self, next: &Similarity) -> Similarity {
+        Similarity {
+            rotation: next.rotation * self.rotation,
+            scale: next.scale * self.scale,
+            translation_mm: next.apply(self.translation_mm),
+        }
+    }
+
     /// The rotation as a matrix.
     pub fn rotation_matrix(&self) -> DMat3 {
         DMat3::from_quat(self.rotation)
@@ -218,8 +227,10 @@ pub struct RegistrationResult {
     pub unmatched_reasons: Vec<Unmatched>,
     /// Triangles of the planar warp that the targets turned over (0 for sane landmarks).
     pub folded_warp_triangles: usize,
-    /// Distance of each registered vertex to the scan surface.
+    /// Distance of each registered vertex to the scan surface: the figures, and per vertex
+    /// (mm; at most 200).
     pub surface_distance_mm: DistanceStats,
+    pub vertex_distance_mm: Vec<f64>,
     /// Wall time of the registration (surface-distance figures included), ms.
     pub millis: f64,
 }
@@ -499,6 +510,7 @@ pub fn register_points(
         unmatched_reasons,
         folded_warp_triangles: warp.folded_triangles(),
         surface_distance_mm: DistanceStats::of(&distances),
+        vertex_distance_mm: distances,
         millis: start.elapsed().as_secs_f64() * 1e3,
     })
 }
