@@ -285,6 +285,17 @@ pub struct LandmarkReport {
 }
 
 impl LandmarkReport {
+    /// The anatomical points (not the region borders) the tilted views put more than
+    /// [`UNSTABLE_SPREAD_MM`] apart; none where the consensus did not run.
+    pub fn unstable_points(&self) -> Vec<FeaturePoint> {
+        self.spread_mm.map_or(Vec::new(), |s| {
+            FeaturePoint::ALL
+                .into_iter()
+                .filter(|p| !FeaturePoint::BORDER.contains(p) && s[p.index()] > UNSTABLE_SPREAD_MM)
+                .collect()
+        })
+    }
+
     /// The names of the Table 2 and level checks that fail (`nose_tip-chin`, `inner_eye`, …).
     pub fn failed_checks(&self) -> Vec<&str> {
         self.distances
@@ -454,13 +465,7 @@ pub fn implausibility(report: &LandmarkReport) -> usize {
     let anatomical = |p: &FeaturePoint| !FeaturePoint::BORDER.contains(p);
     let failed = report.failed_checks().len();
     let guessed = report.guessed.iter().filter(|p| anatomical(p)).count();
-    let unstable = report.spread_mm.map_or(0, |s| {
-        FeaturePoint::ALL
-            .iter()
-            .filter(|p| anatomical(p) && s[p.index()] > UNSTABLE_SPREAD_MM)
-            .count()
-    });
-    failed + guessed + unstable
+    failed + guessed + report.unstable_points().len()
 }
 
 /// The scan as the steps see it, with the sum of its vertex normals (the line of sight,

@@ -1,17 +1,18 @@
 //! Why a detection should not be trusted: the reasons [`LandmarkReport::suspect`] lists.
 
-use super::{LandmarkReport, localise};
+use super::{CONSENSUS_TILT_DEG, LandmarkReport, UNSTABLE_SPREAD_MM, localise};
 use crate::feature_points::FeaturePoint;
 
 /// A head turned further than this from frontal (yaw, degrees) is a profile: half the face is
 /// hidden and the nine steps, built for frontal faces, place points on what is left.
 pub const PROFILE_MIN_YAW_DEG: f64 = 35.0;
 
-/// This many failed Table 2 and level checks make a detection suspect. Table 2's ranges span
-/// a population (min to max), so a right detection on an unusual face fails one or two; three
-/// or more mean the face frame itself is probably wrong (on two generated seeds: 3 of 4 such
-/// scans had points more than 10 mm off; of the real scans in `../shared/data`, only the two
-/// profiles fail three).
+/// This many problems make a detection suspect: failed Table 2 and level checks, and
+/// anatomical points the tilted views put more than [`UNSTABLE_SPREAD_MM`] apart (the same
+/// evidence [`super::implausibility`] weighs between localisation finalists). Table 2's ranges
+/// span a population (min to max), so a right detection on an unusual face fails one or two,
+/// and a point on a shallow feature can be unstable alone; three or more mean the face frame
+/// or the points are probably wrong (figures: docs/measurements.md).
 pub const SUSPECT_FAILED_CHECKS: usize = 3;
 
 /// Why a detection is suspect (empty: it is not), from the localisation and the head's yaw
@@ -20,7 +21,7 @@ pub const SUSPECT_FAILED_CHECKS: usize = 3;
 /// head is turned into a profile ([`PROFILE_MIN_YAW_DEG`]), one of the nine anatomical points
 /// (all but cheeks and forehead, which are region borders) had to be guessed at its Table 2
 /// average position, or [`SUSPECT_FAILED_CHECKS`] or more of `report`'s Table 2 and level
-/// checks fail.
+/// checks fail or its anatomical points are unstable.
 pub fn suspect_reasons(
     localisation: Option<(&localise::Localisation, f64)>,
     report: &LandmarkReport,
@@ -59,11 +60,27 @@ pub fn suspect_reasons(
         ));
     }
     let failed = report.failed_checks();
-    if failed.len() >= SUSPECT_FAILED_CHECKS {
+    let unstable = report.unstable_points();
+    if failed.len() + unstable.len() >= SUSPECT_FAILED_CHECKS {
+        let mut what = Vec::new();
+        if !failed.is_empty() {
+            what.push(format!(
+                "Table 2 and level checks fail: {}",
+                failed.join(", ")
+            ));
+        }
+        if !unstable.is_empty() {
+            let names: Vec<&str> = unstable.iter().map(|p| p.name()).collect();
+            what.push(format!(
+                "views tilted {CONSENSUS_TILT_DEG}° put these more than \
+                 {UNSTABLE_SPREAD_MM} mm apart: {}",
+                names.join(", ")
+            ));
+        }
         out.push(format!(
-            "{} Table 2 and level checks fail ({}): the face frame is probably wrong",
-            failed.len(),
-            failed.join(", ")
+            "{} problems ({}): the face frame or these points are probably wrong",
+            failed.len() + unstable.len(),
+            what.join("; ")
         ));
     }
     out

@@ -563,7 +563,7 @@ fn pass_every_check(report: &mut landmarks::LandmarkReport) {
 }
 
 #[test]
-fn three_failed_plausibility_checks_make_a_detection_suspect() {
+fn three_failed_checks_or_unstable_points_make_a_detection_suspect() {
     let (mesh, _, _) = generated_scan("subj000_frontal1");
     let mut report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
     assert!(report.suspect.is_empty(), "{:?}", report.suspect);
@@ -591,6 +591,18 @@ fn three_failed_plausibility_checks_make_a_detection_suspect() {
             d.name
         );
     }
+    // Two failed checks and an anatomical point the tilted views disagree on are three
+    // problems too; an unstable region border (the forehead) is not one.
+    report.distances[2].in_range = true;
+    let mut spread = [0.0; FeaturePoint::COUNT];
+    spread[FeaturePoint::Forehead.index()] = 40.0;
+    report.spread_mm = Some(spread);
+    assert!(landmarks::suspect_reasons(None, &report, &params).is_empty());
+    spread[FeaturePoint::InnerEyeLeft.index()] = landmarks::UNSTABLE_SPREAD_MM + 1.0;
+    report.spread_mm = Some(spread);
+    let reasons = landmarks::suspect_reasons(None, &report, &params);
+    assert_eq!(reasons.len(), 1, "{reasons:?}");
+    assert!(reasons[0].contains("apart: inner_eye_left)"), "{reasons:?}");
 }
 
 #[test]
