@@ -27,6 +27,12 @@ pub const OUTER_EYE_OFFSET_MM: (f64, f64) = (26.0, 1.5);
 /// benchmark). Without it the nearest concave vertex was as often on the upper lid in front
 /// of the corner, or round on the temple behind it.
 pub const OUTER_EYE_DEPTH_MM: f64 = -6.0;
+/// Our step 4: concave vertices further than this behind the inner corner (mm, scanner depth)
+/// are not the lateral canthus but the side of the head, the ear or a spike the denoiser
+/// left. The canthus lies about 6 mm behind (the depth prior above), so this is a gate, not a
+/// preference: the depth term alone let a 90 mm deep region win where it was the only
+/// candidate in the box.
+pub const OUTER_EYE_MAX_BEHIND_MM: f64 = 20.0;
 /// Our step 4: a millimetre of depth off [`OUTER_EYE_DEPTH_MM`] counts this many millimetres
 /// of in-plane distance to the prior.
 pub const OUTER_EYE_DEPTH_WEIGHT: f64 = 1.5;
@@ -57,8 +63,10 @@ impl Detector<'_> {
             (au + s.min_mm, au + s.max_mm + 6.0),
             (q.y - 12.0, q.y + 10.0),
         );
+        let behind_limit_mm = self.p(inner).z - OUTER_EYE_MAX_BEHIND_MM;
         let mask = self.box_mask(frame, bx, |v| {
-            self.desc.shape_index[v] < OUTER_EYE_CONCAVE_MAX_S
+            self.p(v).z >= behind_limit_mm
+                && self.desc.shape_index[v] < OUTER_EYE_CONCAVE_MAX_S
                 && self.desc.curvedness_per_mm[v] >= FEATURE_MIN_CURVEDNESS_PER_MM
         });
         let prior = DVec2::new(

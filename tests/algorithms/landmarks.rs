@@ -478,6 +478,77 @@ fn real_scans_give_the_same_points_in_any_orientation() {
 /// Made-harder real scans: a torso (a broad surface below the chin that bulges further towards
 /// the scanner than the nose) or a hair cap (a bumpy dome over the forehead) added to a real
 /// scan does not move the ten anatomical points by more than 2 mm.
+/// Adds a grid patch sampled every `step` mm over (x, y) ∈ [u0, u1] × [v0, v1] (scanner
+/// frame), depth z(x, y), facing +z.
+fn add_patch(m: &mut Mesh, u: (f64, f64), v: (f64, f64), step: f64, z: &dyn Fn(f64, f64) -> f64) {
+    let (nu, nv) = (((u.1 - u.0) / step) as u32, ((v.1 - v.0) / step) as u32);
+    let first = m.positions_mm.len() as u32;
+    let mut faces = Vec::new();
+    for j in 0..=nv {
+        for i in 0..=nu {
+            let (x, y) = (u.0 + step * i as f64, v.0 + step * j as f64);
+            m.positions_mm.push(DVec3::new(x, y, z(x, y)));
+            if i < nu && j < nv {
+                let k = first + j * (nu + 1) + i;
+                faces.push([k, k + 1, k + nu + 2, k + nu + 1]);
+            }
+        }
+    }
+    for f in faces {
+        m.faces.push(&f);
+    }
+    m.update_normals();
+}
+
+/// Step 4's search box lies in the face plane; what lies far behind the eye there (the side of
+/// the head, an ear, a spike cluster) is not the lateral canthus. With the skin beside the
+/// right eye pressed flat and a concave dish 90 mm behind the eye, 16 mm lateral, inside the
+/// box, neither the corner nor any tilted view's corner is put on the dish (one was, 94 mm
+/// off, on a generated scan whose canthus had no concave region).
+#[test]
+fn a_concave_dish_far_behind_the_eye_is_not_the_outer_eye_corner() {
+    let (mut mesh, truth, _) = generated_scan("subj000_frontal1");
+    let at = |p| DVec3::from_array(truth.feature_point(p).unwrap().xyz_mm);
+    let (outer, inner) = (
+        at(FeaturePoint::OuterEyeRight),
+        at(FeaturePoint::InnerEyeRight),
+    );
+    // The skin beside the right eye pressed flat (no concave region left in the box).
+    for p in &mut mesh.positions_mm {
+        let (lateral, up) = (inner.x - p.x, p.y - inner.y);
+        if (8.0..60.0).contains(&lateral) && (-22.0..20.0).contains(&up) {
+            p.z = inner.z - 6.0;
+        }
+    }
+    mesh.update_normals();
+    // A spherical cup of radius 8 mm (shape index 0), deepest at its centre.
+    let centre = outer - DVec3::new(16.0, 0.0, 90.0);
+    let cup = |x: f64, y: f64| {
+        let d2 = (x - centre.x).powi(2) + (y - centre.y).powi(2);
+        centre.z + 8.0 - (64.0 - d2.min(63.0)).sqrt()
+    };
+    add_patch(
+        &mut mesh,
+        (centre.x - 6.0, centre.x + 6.0),
+        (centre.y - 6.0, centre.y + 6.0),
+        1.0,
+        &cup,
+    );
+    let found = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
+    let corner = found.landmarks.get(FeaturePoint::OuterEyeRight);
+    assert!(
+        corner.z > inner.z - landmarks::OUTER_EYE_MAX_BEHIND_MM,
+        "outer eye corner {corner} on the dish (inner corner {inner})"
+    );
+    // Nor in any of the consensus' tilted views: one there would lie ~90 mm from the others
+    // (measured without the depth gate: 84 mm; with it: 14 mm, the flattened skin's edge).
+    let spread = found.spread_mm.unwrap()[FeaturePoint::OuterEyeRight.index()];
+    assert!(
+        spread < 45.0,
+        "a view put the corner on the dish: spread {spread:.0} mm"
+    );
+}
+
 #[test]
 fn clutter_below_the_chin_or_over_the_forehead_does_not_move_the_points() {
     let base = denoised(&common::gavab("cara1_frontal1.wrl"));
@@ -485,26 +556,7 @@ fn clutter_below_the_chin_or_over_the_forehead_does_not_move_the_points() {
     let tip = level.landmarks.get(FeaturePoint::NoseTip);
     let chin = level.landmarks.get(FeaturePoint::Chin);
     let forehead = level.landmarks.get(FeaturePoint::Forehead);
-    // A patch sampled every 2 mm over (u, v) ∈ [u0, u1] × [v0, v1], depth z(u, v).
-    let patch = |m: &mut Mesh, u: (f64, f64), v: (f64, f64), z: &dyn Fn(f64, f64) -> f64| {
-        let (nu, nv) = (((u.1 - u.0) / 2.0) as u32, ((v.1 - v.0) / 2.0) as u32);
-        let first = m.positions_mm.len() as u32;
-        let mut faces = Vec::new();
-        for j in 0..=nv {
-            for i in 0..=nu {
-                let (x, y) = (u.0 + 2.0 * i as f64, v.0 + 2.0 * j as f64);
-                m.positions_mm.push(DVec3::new(x, y, z(x, y)));
-                if i < nu && j < nv {
-                    let k = first + j * (nu + 1) + i;
-                    faces.push([k, k + 1, k + nu + 2, k + nu + 1]);
-                }
-            }
-        }
-        for f in faces {
-            m.faces.push(&f);
-        }
-        m.update_normals();
-    };
+    let patch = |m: &mut Mesh, u, v, z: &dyn Fn(f64, f64) -> f64| add_patch(m, u, v, 2.0, z);
     // Torso: 360 mm wide, from 40 mm below the chin down 200 mm, its front 15 mm in front of
     // the nose tip (a chest seen from a scanner level with the face), rounded to the sides.
     let mut torso = base.clone();
