@@ -183,6 +183,7 @@ impl Detector<'_> {
         else {
             return near;
         };
+        let trench = trench.vertices;
         let z_min = trench
             .iter()
             .map(|&v| self.p(v as usize).z)

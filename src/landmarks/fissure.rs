@@ -39,7 +39,7 @@ impl Detector<'_> {
         side: f64,
         (lat_from, lat_to, down, up): (f64, f64, f64, f64),
         min_depth_mm: f64,
-    ) -> Option<Vec<u32>> {
+    ) -> Option<Trench> {
         let search = UvBox {
             u: (lat_from, lat_to),
             v: (-down, up),
@@ -77,7 +77,21 @@ impl Detector<'_> {
             .into_iter()
             .map(|r| (deepest(&r), r))
             .min_by(|a, b| a.0.total_cmp(&b.0))
-            .map(|(_, r)| r)
-            .filter(|r| r.len() >= 3)
+            .filter(|(_, r)| r.len() >= 3)
+            .map(|(deepest_mm, r)| Trench {
+                relief_mm: r.iter().map(|&v| relief[v as usize]).collect(),
+                vertices: r,
+                deepest_mm,
+            })
     }
+}
+
+/// A lid fissure's trench ([`Detector::fissure_trench`]).
+pub(super) struct Trench {
+    pub(super) vertices: Vec<u32>,
+    /// Per vertex (as `vertices`), its depth below the Gaussian mean of its surroundings, mm
+    /// (negative).
+    pub(super) relief_mm: Vec<f64>,
+    /// The most negative of `relief_mm`.
+    pub(super) deepest_mm: f64,
 }

@@ -94,7 +94,8 @@
 //!    canthus faces sideways) and its centroid was 8–12 mm off on the benchmark. Then each
 //!    corner moves to the lateral end of its lid fissure (the trench of step 3's refinement,
 //!    at least [`OUTER_FISSURE_MIN_DEPTH_MM`] deep, in a box [`OUTER_FISSURE_BOX_MM`] around
-//!    it) unless that end is more than 8 mm away or [`OUTER_FISSURE_MAX_RISE_MM`] in front of
+//!    it; the end of its floor, half its deepest relief, so that a wrinkle running on from
+//!    the canthus does not carry it away) unless that end is more than 8 mm away or [`OUTER_FISSURE_MAX_RISE_MM`] in front of
 //!    it: the fixed offset from the inner corner scattered the point ±5–6 mm along the
 //!    fissure, as the eyes' widths vary.
 //! 5. **Nose corners** (`nose_corners.rs`). The paper's `|∂/∂z| ≤ 0.5`, `|∂/∂x| > 0.65`

@@ -43,6 +43,12 @@ pub const OUTER_FISSURE_BOX_MM: (f64, f64, f64, f64) = (-10.0, 4.0, 2.0, 3.0);
 /// How far below its surroundings' mean depth a vertex of the fissure at the outer corner
 /// lies, at least (mm).
 pub const OUTER_FISSURE_MIN_DEPTH_MM: f64 = 0.8;
+/// The outer fissure's end is the most lateral vertex of its floor: the trench's vertices at
+/// least this fraction as deep as its deepest (half depth, as a peak's half-maximum width).
+/// Real skin has wrinkles running on laterally from the canthus (crow's feet) that reach
+/// the trench's absolute depth threshold but not half the fissure's depth; the generated
+/// benchmark's skin has none (measured: docs/measurements.md).
+pub const OUTER_FISSURE_FLOOR_FRACTION: f64 = 0.5;
 /// An outer fissure end more than this in front of the concave region's point (mm along z)
 /// is not taken: it is on the upper lid.
 pub const OUTER_FISSURE_MAX_RISE_MM: f64 = 4.0;
@@ -97,7 +103,8 @@ impl Detector<'_> {
     /// point `near` (the lateral canthus is where the trench between the lids ends). The
     /// trench is [`Self::fissure_trench`] in a box [`OUTER_FISSURE_BOX_MM`] around `near`,
     /// with vertices at least [`OUTER_FISSURE_MIN_DEPTH_MM`] deep (shallower creases run on
-    /// from the canthus towards the temple); its most lateral vertex is the corner. No
+    /// from the canthus towards the temple); the most lateral vertex of its floor
+    /// ([`OUTER_FISSURE_FLOOR_FRACTION`] of its deepest relief) is the corner. No
     /// trench, or a corner more than [`FISSURE_MAX_SHIFT_MM`] from `near` or more than
     /// [`OUTER_FISSURE_MAX_RISE_MM`] in front of it (the upper lid): `near` stays.
     pub(super) fn outer_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
@@ -111,9 +118,13 @@ impl Detector<'_> {
         ) else {
             return near;
         };
+        let floor_mm = OUTER_FISSURE_FLOOR_FRACTION * trench.deepest_mm;
         let corner = trench
+            .vertices
             .iter()
-            .map(|&v| v as usize)
+            .zip(&trench.relief_mm)
+            .filter(|&(_, &r)| r <= floor_mm)
+            .map(|(&v, _)| v as usize)
             .max_by(|&a, &b| rel(a).x.total_cmp(&rel(b).x))
             .unwrap_or(near);
         if rel(corner).length() <= FISSURE_MAX_SHIFT_MM
