@@ -126,11 +126,11 @@
 //!
 //! # Accuracy and speed
 //!
-//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 39–40 of
-//! 40 neutral scans have all 9 points within 10 mm (four seeds, one made after the last change).
-//! Real scans in
-//! `../shared/data`: 27 of 34 agree within 12 mm with an independent detector
-//! (`scripts/real_landmarks.sh`; the two profiles are flagged). Denoise + detection, release
+//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 37–40 of
+//! 40 neutral scans have all 9 points within 10 mm (seven seeds; 39 on the one made after the
+//! last change). Real scans in `../shared/data`: 28 of 34 agree within 12 mm with an
+//! independent detector (`scripts/real_landmarks.sh`; the two profiles and the worst
+//! disagreement, cara46_frontal1, are flagged suspect). Denoise + detection, release
 //! build on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1).
 //! Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
 
