@@ -275,18 +275,9 @@ fn remove_stale_temp_files(dir: &Path) {
 }
 
 /// One gallery scan: denoise → landmarks → register → FEM → expressions, written into
-/// `out_dir` atomically, `done.json` last.
-pub fn augment_scan(
-    scan: &Path,
-    out_dir: &Path,
-    generic: &GenericFace,
-    params: &AugmentParams,
-) -> Result<AugmentedScan> {
-    augment_scan_with(scan, correction_of(scan, params)?, out_dir, generic, params)
-}
-
-/// [`augment_scan`] with the scan's correction file already read ([`correction_of`]).
-fn augment_scan_with(
+/// `out_dir` atomically, `done.json` last; the scan's correction file is already read
+/// ([`correction_of`]).
+fn augment_scan(
     scan: &Path,
     (correction, correction_json): (Option<std::path::PathBuf>, serde_json::Value),
     out_dir: &Path,
@@ -498,7 +489,7 @@ pub fn augment(
                 }
                 let redone = matches!(finished, Finished::OtherSettings | Finished::OtherLandmarks);
                 clear_samples(&dir)
-                    .and_then(|()| augment_scan_with(scan, correction, &dir, &generic, params))
+                    .and_then(|()| augment_scan(scan, correction, &dir, &generic, params))
                     .map(|a| AugmentedScan { redone, ..a })
                     .map_err(failure)
             });

@@ -120,6 +120,19 @@ pub struct FitState {
     pub millis: f64,
 }
 
+impl FitState {
+    /// |residual| per skin vertex of the fitted face (NaN: no scan point within reach), when
+    /// the fit was made on this face (`n` skin vertices).
+    pub fn residual_magnitude(&self, n: usize) -> Option<Vec<f64>> {
+        (self.residual_mm.len() == n).then(|| {
+            self.residual_mm
+                .iter()
+                .map(|r| r.map_or(f64::NAN, f64::abs))
+                .collect()
+        })
+    }
+}
+
 /// The automatic feature-point detection on the working scan (paper 2.1.2).
 #[derive(Debug, Clone)]
 pub struct DetectionState {

@@ -115,6 +115,16 @@ fn denoise_scale(displacement_mm: &[f64]) -> ColourScale {
     ColourScale::magnitude(displacement_mm, 0.1, "denoise move (mm)")
 }
 
+/// Fixed 0 – [`crate::fem::fit::RESIDUAL_MAX_MM`], as `fit-expression --residual-png`.
+fn fit_residual_scale() -> ColourScale {
+    ColourScale {
+        ramp: crate::render::colormap::Ramp::Sequential,
+        min: 0.0,
+        max: crate::fem::fit::RESIDUAL_MAX_MM,
+        title: "distance to the expression scan (mm)".into(),
+    }
+}
+
 fn registration_scale(distance_mm: &[f64]) -> ColourScale {
     // Fixed 0–3 mm: figures are comparable between scans; grey = unmatched (filled).
     ColourScale {
@@ -188,13 +198,8 @@ fn build_scene(app: &EditorApp) -> SceneCache {
                     Some(c)
                 }
                 Overlay::FitResidual => doc.fit.as_ref().and_then(|f| {
-                    let distance = fit_residual_magnitude(f, n)?;
-                    let scale = ColourScale {
-                        ramp: crate::render::colormap::Ramp::Sequential,
-                        min: 0.0,
-                        max: crate::fem::fit::RESIDUAL_MAX_MM,
-                        title: "distance to the expression scan (mm)".into(),
-                    };
+                    let distance = f.residual_magnitude(n)?;
+                    let scale = fit_residual_scale();
                     let c = scale.colours(&distance);
                     legend = Some(scale);
                     Some(c)
@@ -713,17 +718,6 @@ fn legend_ui(painter: &egui::Painter, rect: egui::Rect, scale: &ColourScale) {
         egui::FontId::proportional(12.0),
         text,
     );
-}
-
-/// |residual| per skin vertex of the fitted face (NaN: no scan point within reach), when the
-/// fit was made on this face (`n` skin vertices).
-pub fn fit_residual_magnitude(fit: &crate::app::jobs::FitState, n: usize) -> Option<Vec<f64>> {
-    (fit.residual_mm.len() == n).then(|| {
-        fit.residual_mm
-            .iter()
-            .map(|r| r.map_or(f64::NAN, f64::abs))
-            .collect()
-    })
 }
 
 #[cfg(test)]

@@ -100,7 +100,7 @@ impl FaceFrame {
 
 /// The skin point "under" `target` seen along the face's forward axis: the forward-facing
 /// surface vertex closest to `target` in the face plane.
-pub fn snap_to_skin(surface: &Mesh, frame: &FaceFrame, target: DVec3) -> DVec3 {
+fn snap_to_skin(surface: &Mesh, frame: &FaceFrame, target: DVec3) -> DVec3 {
     let mut best = (f64::INFINITY, target);
     for (p, n) in surface.positions_mm.iter().zip(&surface.normals) {
         if n.dot(frame.z) < 0.2 {

@@ -15,7 +15,7 @@
 use super::FaceModel;
 use super::expressions::ExpressionSet;
 use super::fit::Alignment;
-use super::fit::{FitParams, align_scan, check_alignment, rms_to_scan, vertices_on_scans};
+use super::fit::{FitParams, align_scan, check_alignment, transform, vertices_on_scans};
 use super::regions::{EXPRESSION_REGIONS, Regions};
 use crate::feature_points::Landmarks;
 use crate::mesh::SurfaceIndex;
@@ -85,18 +85,21 @@ pub fn compare_presets(
     let rest = &model.surface.positions_mm;
     let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
     let neutral = neutral_index.as_ref();
-    let (aligned, to_model) = align_scan(
+    let regions = Regions::of(&model.surface, &model.feature_vertices)?;
+    let stable = regions.stable();
+    let to_model = align_scan(
         model,
+        &stable,
         rest,
         neutral,
-        expression_scan,
+        &SurfaceIndex::new(expression_scan, 4.0),
         scan_landmarks,
         params,
     )?;
+    let aligned = transform(expression_scan, &to_model);
     let index = SurfaceIndex::new(&aligned, 4.0);
-    let alignment = check_alignment(model, rest, neutral, &to_model, &index, params)?;
+    let alignment = check_alignment(model, &regions, rest, neutral, &to_model, &index, params)?;
     let vertices = vertices_on_scans(model, &index, neutral, params)?;
-    let regions = Regions::of(&model.surface, &model.feature_vertices)?;
     let used: Vec<bool> = {
         let mut u = vec![false; rest.len()];
         vertices.iter().for_each(|&v| u[v] = true);
@@ -117,23 +120,23 @@ pub fn compare_presets(
         None => set.expressions.iter().collect(),
         Some(wanted) => wanted
             .iter()
-            .map(|w| {
-                set.get(w).ok_or_else(|| {
-                    crate::FemError::Definition(format!(
-                        "unknown preset `{w}` (known: {})",
-                        set.names().join(", ")
-                    ))
-                    .into()
-                })
-            })
+            .map(|w| set.lookup(w, "preset"))
             .collect::<Result<_>>()?,
     };
     let distance = |name: &str, u: &[DVec3]| -> Result<PresetDistance> {
         // Re-align on this preset's surface: its forehead and nose moved a little too.
         let surface: Vec<DVec3> = rest.iter().zip(u).map(|(p, d)| *p + *d).collect();
-        let (again, _) = align_scan(model, &surface, neutral, &aligned, None, params)?;
-        let index = SurfaceIndex::new(&again, 4.0);
-        let rms = |vs: &[usize]| rms_to_scan(model, &index, vs, u, params.max_distance_mm);
+        let t = align_scan(model, &stable, &surface, neutral, &index, None, params)?;
+        let again = SurfaceIndex::new(&transform(&aligned, &t), 4.0);
+        // Each compared vertex's squared distance once; the regions are subsets.
+        let max = params.max_distance_mm;
+        let mut d2 = vec![0.0; rest.len()];
+        for &v in &vertices {
+            let d = again.closest(rest[v] + u[v], max).map_or(max, |(d, _)| d);
+            d2[v] = d * d;
+        }
+        let rms =
+            |vs: &[usize]| (vs.iter().fold(0.0, |s, &v| s + d2[v]) / vs.len().max(1) as f64).sqrt();
         Ok(PresetDistance {
             preset: name.to_string(),
             whole_face_rms_mm: rms(&vertices),

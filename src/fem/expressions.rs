@@ -132,17 +132,20 @@ impl ExpressionSet {
             return Ok(self.expressions.iter().collect());
         }
         list.split(',')
-            .map(|name| {
-                let name = name.trim();
-                self.get(name).ok_or_else(|| {
-                    FemError::Definition(format!(
-                        "unknown expression `{name}` (known: {})",
-                        self.names().join(", ")
-                    ))
-                    .into()
-                })
-            })
+            .map(|name| self.lookup(name.trim(), "expression"))
             .collect()
+    }
+
+    /// The preset called `name`, or an error naming it as a `what` (expression, preset) and
+    /// listing the known ones.
+    pub fn lookup(&self, name: &str, what: &str) -> Result<&Expression> {
+        self.get(name).ok_or_else(|| {
+            FemError::Definition(format!(
+                "unknown {what} `{name}` (known: {})",
+                self.names().join(", ")
+            ))
+            .into()
+        })
     }
 }
 

@@ -195,13 +195,6 @@ pub const RESIDUAL_MAX_MM: f64 = 5.0;
 const ICP_TRIM_FACTOR: f64 = 2.5;
 const ICP_TRIM_MIN_MM: f64 = 1.0;
 
-/// Stable vertices for rigid alignment, by part: the upper forehead and the nose
-/// ([`Regions`]).
-fn stable_parts(model: &FaceModel) -> Result<(Vec<usize>, Vec<usize>)> {
-    let r = Regions::of(&model.surface, &model.feature_vertices)?;
-    Ok((r.forehead, r.nose))
-}
-
 /// The RMS distance of `points` to the scan (`index`), over those within `max_mm` of it, and
 /// how many those are.
 fn part_rms(points: &[DVec3], index: &SurfaceIndex, max_mm: f64) -> (f64, usize) {
@@ -213,7 +206,7 @@ fn part_rms(points: &[DVec3], index: &SurfaceIndex, max_mm: f64) -> (f64, usize)
     (rms, d.len())
 }
 
-fn transform(mesh: &Mesh, t: &Similarity) -> Mesh {
+pub(super) fn transform(mesh: &Mesh, t: &Similarity) -> Mesh {
     Mesh::new(
         mesh.positions_mm.iter().map(|&p| t.apply(p)).collect(),
         mesh.faces.clone(),
@@ -245,10 +238,10 @@ fn stable_targets(
         .collect()
 }
 
-/// Moves `scan` into the frame of `model` rigidly: Horn on the stable landmarks if given, then
-/// ICP of the stable region of `reference_mm` (the model surface, possibly already deformed by
-/// the current expression estimate: one position per surface vertex). Returns the moved scan
-/// and the rigid transform that moved it.
+/// The rigid transform that moves a scan (`scan_index`, its index) into the frame of `model`:
+/// Horn on the stable landmarks if given, then ICP of the `stable` vertices
+/// ([`Regions::stable`]) of `reference_mm` (the model surface, possibly already deformed by
+/// the current expression estimate: one position per surface vertex).
 ///
 /// With the neutral scan (`neutral`, its index) the ICP targets are the neutral scan's points
 /// under the model's stable vertices (closest points, within [`FitParams::max_distance_mm`]),
@@ -257,19 +250,18 @@ fn stable_targets(
 /// registration's own error there (1–2 mm on real scans) does not tilt it.
 pub fn align_scan(
     model: &FaceModel,
+    stable: &[usize],
     reference_mm: &[DVec3],
     neutral: Option<&SurfaceIndex>,
-    scan: &Mesh,
+    scan_index: &SurfaceIndex,
     scan_landmarks: Option<&Landmarks>,
     params: &FitParams,
-) -> Result<(Mesh, Similarity)> {
-    let (mut stable, nose) = stable_parts(model)?;
-    stable.extend(nose);
-    let targets = stable_targets(model, reference_mm, neutral, &stable, params);
+) -> Result<Similarity> {
+    let targets = stable_targets(model, reference_mm, neutral, stable, params);
     // The scan stays where it is and the targets are taken into its frame: one index for all
     // rounds and both starts.
-    let index = SurfaceIndex::new(scan, 4.0);
-    let plain = icp(&index, Similarity::IDENTITY, &targets, params);
+    let index = scan_index;
+    let plain = icp(index, Similarity::IDENTITY, &targets, params);
     let best = match scan_landmarks {
         None => plain?.0,
         Some(lm) => {
@@ -288,7 +280,7 @@ pub fn align_scan(
                 .map(|&p| reference_mm[model.feature_vertices[p.index()] as usize])
                 .collect();
             let t = horn_absolute_orientation(&from, &to, false)?;
-            let started = icp(&index, t, &targets, params);
+            let started = icp(index, t, &targets, params);
             // Detected points can be wrong (a smile moves the nose corners, a failed detection
             // puts them anywhere): the start whose ICP ends nearer the stable parts wins.
             match (started, plain) {
@@ -304,7 +296,7 @@ pub fn align_scan(
             }
         }
     };
-    Ok((transform(scan, &best), best))
+    Ok(best)
 }
 
 /// Trimmed ICP of the scan (`index`, in its own frame) onto the stable `targets` (model
@@ -434,19 +426,19 @@ pub(super) fn vertices_on_scans(
 /// [`align_scan`]. Errors naming the parts farther than [`STABLE_PART_MAX_RMS_MM`].
 pub(super) fn check_alignment(
     model: &FaceModel,
+    regions: &Regions,
     surface_mm: &[DVec3],
     neutral: Option<&SurfaceIndex>,
     to_model: &Similarity,
     index: &SurfaceIndex,
     params: &FitParams,
 ) -> Result<Alignment> {
-    let (forehead, nose) = stable_parts(model)?;
     let part = |vs: &[usize]| {
         let targets = stable_targets(model, surface_mm, neutral, vs, params);
         part_rms(&targets, index, params.max_distance_mm)
     };
-    let (forehead_rms_mm, on_forehead) = part(&forehead);
-    let (nose_rms_mm, on_nose) = part(&nose);
+    let (forehead_rms_mm, on_forehead) = part(&regions.forehead);
+    let (nose_rms_mm, on_nose) = part(&regions.nose);
     let bad: Vec<String> = [
         ("forehead", forehead_rms_mm, on_forehead),
         ("nose", nose_rms_mm, on_nose),
@@ -525,14 +517,18 @@ pub fn fit_expression(
     }
     let n = model.surface.vertex_count();
     let neutral_index = neutral_scan.map(|m| SurfaceIndex::new(m, 4.0));
-    let (mut aligned, mut to_model) = align_scan(
+    let regions = Regions::of(&model.surface, &model.feature_vertices)?;
+    let stable = regions.stable();
+    let mut to_model = align_scan(
         model,
+        &stable,
         &model.surface.positions_mm,
         neutral_index.as_ref(),
-        expression_scan,
+        &SurfaceIndex::new(expression_scan, 4.0),
         scan_landmarks,
         params,
     )?;
+    let mut aligned = transform(expression_scan, &to_model);
     let mut index = SurfaceIndex::new(&aligned, 4.0);
     // Vertices the scan covers (checked on the neutral face; holes and hair stay out), and
     // that the registration put on the neutral scan.
@@ -561,15 +557,16 @@ pub fn fit_expression(
             let reference: Vec<DVec3> = (0..n)
                 .map(|v| model.surface.positions_mm[v] + u[v])
                 .collect();
-            let (again, t) = align_scan(
+            let t = align_scan(
                 model,
+                &stable,
                 &reference,
                 neutral_index.as_ref(),
-                &aligned,
+                &index,
                 None,
                 params,
             )?;
-            aligned = again;
+            aligned = transform(&aligned, &t);
             to_model = to_model.then(&t);
             index = SurfaceIndex::new(&aligned, 4.0);
         }
@@ -620,9 +617,9 @@ pub fn fit_expression(
             .map(|v| model.surface.positions_mm[v] + w[v])
             .collect()
     };
-    let (_, nose) = stable_parts(model)?;
     let alignment = check_alignment(
         model,
+        &regions,
         &fitted,
         neutral_index.as_ref(),
         &to_model,
@@ -636,7 +633,7 @@ pub fn fit_expression(
         let pos = |p: FeaturePoint| s.positions_mm[model.feature_vertices[p.index()] as usize];
         let frame = FaceFrame::new(pos)?;
         let tip = pos(FeaturePoint::NoseTip);
-        let nose_set: std::collections::HashSet<usize> = nose.iter().copied().collect();
+        let nose_set: std::collections::HashSet<usize> = regions.nose.iter().copied().collect();
         vertices
             .iter()
             .copied()

@@ -239,6 +239,16 @@ pub fn read_file(path: &Path, limits: &ReadLimits) -> Result<Vec<u8>> {
 pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 
 /// Reads a small UTF-8 text file (JSON, RON) through [`read_file`]'s checks.
+/// The entries of the folder `dir`, sorted by path.
+pub(crate) fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
 pub fn read_text_file(path: &Path) -> Result<String> {
     let limits = ReadLimits {
         max_file_bytes: MAX_TEXT_BYTES.min(default_limits().max_file_bytes),

@@ -78,10 +78,9 @@ impl Detector<'_> {
             .map(|r| (deepest(&r), r))
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .filter(|(_, r)| r.len() >= 3)
-            .map(|(deepest_mm, r)| Trench {
+            .map(|(_, r)| Trench {
                 relief_mm: r.iter().map(|&v| relief[v as usize]).collect(),
                 vertices: r,
-                deepest_mm,
             })
     }
 }
@@ -92,6 +91,11 @@ pub(super) struct Trench {
     /// Per vertex (as `vertices`), its depth below the Gaussian mean of its surroundings, mm
     /// (negative).
     pub(super) relief_mm: Vec<f64>,
-    /// The most negative of `relief_mm`.
-    pub(super) deepest_mm: f64,
+}
+
+impl Trench {
+    /// The most negative relief of the trench, mm.
+    pub(super) fn deepest_mm(&self) -> f64 {
+        self.relief_mm.iter().copied().fold(0.0, f64::min)
+    }
 }

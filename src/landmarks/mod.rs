@@ -95,8 +95,8 @@
 //!    corner moves to the lateral end of its lid fissure (the trench of step 3's refinement,
 //!    at least [`OUTER_FISSURE_MIN_DEPTH_MM`] deep, in a box [`OUTER_FISSURE_BOX_MM`] around
 //!    it; the end of its floor, half its deepest relief, so that a wrinkle running on from
-//!    the canthus does not carry it away) unless that end is more than 8 mm away or [`OUTER_FISSURE_MAX_RISE_MM`] in front of
-//!    it: the fixed offset from the inner corner scattered the point ±5–6 mm along the
+//!    the canthus does not carry it away) unless that end is more than 8 mm away or
+//!    [`OUTER_FISSURE_MAX_RISE_MM`] in front of it: the fixed offset from the inner corner scattered the point ±5–6 mm along the
 //!    fissure, as the eyes' widths vary.
 //! 5. **Nose corners** (`nose_corners.rs`). The paper's `|∂/∂z| ≤ 0.5`, `|∂/∂x| > 0.65`
 //!    region (the side walls of the nose) gives the widest points of the alae; the ground
@@ -177,8 +177,8 @@ pub use nose_corners::{
 pub use outer_eyes::{
     OUTER_EYE_CONCAVE_MAX_S, OUTER_EYE_DEPTH_MM, OUTER_EYE_DEPTH_WEIGHT, OUTER_EYE_MAX_BEHIND_MM,
     OUTER_EYE_MAX_DX, OUTER_EYE_MAX_GRAD_XY, OUTER_EYE_MAX_S, OUTER_EYE_MIN_REGION_VERTICES,
-    OUTER_EYE_OFFSET_MM, OUTER_FISSURE_BOX_MM, OUTER_FISSURE_MAX_RISE_MM,
-    OUTER_FISSURE_MIN_DEPTH_MM,
+    OUTER_EYE_OFFSET_MM, OUTER_FISSURE_BOX_MM, OUTER_FISSURE_FLOOR_FRACTION,
+    OUTER_FISSURE_MAX_RISE_MM, OUTER_FISSURE_MIN_DEPTH_MM,
 };
 pub use segmentation::{ENCLOSED_ISLAND_BAND_MM, ENCLOSED_ISLAND_MIN_VERTICES, FACE_MIN_DZ};
 pub use suspect::{PROFILE_MIN_YAW_DEG, SUSPECT_FAILED_CHECKS, suspect_reasons};
@@ -288,6 +288,14 @@ pub struct LandmarkReport {
 }
 
 impl LandmarkReport {
+    /// The anatomical points (not the region borders) that had to be guessed at their Table 2
+    /// average position.
+    pub fn guessed_anatomical(&self) -> Vec<FeaturePoint> {
+        (self.guessed.iter().copied())
+            .filter(|p| !FeaturePoint::BORDER.contains(p))
+            .collect()
+    }
+
     /// The anatomical points (not the region borders) the tilted views put more than
     /// [`UNSTABLE_SPREAD_MM`] apart; none where the consensus did not run.
     pub fn unstable_points(&self) -> Vec<FeaturePoint> {
@@ -465,10 +473,9 @@ pub const PLAUSIBILITY_TIE: f64 = 0.1;
 /// anatomical points guessed at their Table 2 position, and anatomical points the tilted views
 /// put more than [`UNSTABLE_SPREAD_MM`] apart.
 pub fn implausibility(report: &LandmarkReport) -> usize {
-    let anatomical = |p: &FeaturePoint| !FeaturePoint::BORDER.contains(p);
-    let failed = report.failed_checks().len();
-    let guessed = report.guessed.iter().filter(|p| anatomical(p)).count();
-    failed + guessed + report.unstable_points().len()
+    report.failed_checks().len()
+        + report.guessed_anatomical().len()
+        + report.unstable_points().len()
 }
 
 /// The scan as the steps see it, with the sum of its vertex normals (the line of sight,

@@ -118,7 +118,7 @@ impl Detector<'_> {
         ) else {
             return near;
         };
-        let floor_mm = OUTER_FISSURE_FLOOR_FRACTION * trench.deepest_mm;
+        let floor_mm = OUTER_FISSURE_FLOOR_FRACTION * trench.deepest_mm();
         let corner = trench
             .vertices
             .iter()

@@ -1,7 +1,6 @@
 //! Why a detection should not be trusted: the reasons [`LandmarkReport::suspect`] lists.
 
 use super::{CONSENSUS_TILT_DEG, LandmarkReport, UNSTABLE_SPREAD_MM, localise};
-use crate::feature_points::FeaturePoint;
 
 /// A head turned further than this from frontal (yaw, degrees) is a profile: half the face is
 /// hidden and the nine steps, built for frontal faces, place points on what is left.
@@ -27,7 +26,6 @@ pub fn suspect_reasons(
     report: &LandmarkReport,
     params: &localise::LocaliseParams,
 ) -> Vec<String> {
-    let guessed = &report.guessed;
     let mut out = Vec::new();
     if let Some((l, yaw)) = localisation {
         if l.face_likeness < params.face_likeness_min {
@@ -48,9 +46,7 @@ pub fn suspect_reasons(
             ));
         }
     }
-    let anatomical: Vec<&str> = guessed
-        .iter()
-        .filter(|p| !FeaturePoint::BORDER.contains(p))
+    let anatomical: Vec<&str> = (report.guessed_anatomical().iter())
         .map(|p| p.name())
         .collect();
     if !anatomical.is_empty() {

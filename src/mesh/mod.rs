@@ -303,7 +303,7 @@ impl Mesh {
 
 /// The gradient of `f` at `p` by central differences of step `h` along the world axes. Along
 /// fixed axes a mirrored point gets the mirrored gradient, so a search driven by it keeps a
-/// symmetric mesh symmetric (`fem::untangle`, `pipeline::relax_skewed_quads`).
+/// symmetric mesh symmetric (`fem::untangle`, `fem::repair::relax_skewed_quads`).
 pub fn central_gradient(mut f: impl FnMut(DVec3) -> f64, p: DVec3, h: f64) -> DVec3 {
     let d = |f: &mut dyn FnMut(DVec3) -> f64, axis: DVec3| f(p + axis * h) - f(p - axis * h);
     DVec3::new(

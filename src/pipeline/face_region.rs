@@ -36,11 +36,11 @@ impl PreparedScan {
             let p = mesh.positions_mm[v];
             (p - hairline).dot(up) <= 0.0 && (p - mid).dot(across).abs() <= half_width
         });
-        let r4 = |x: f64| (x * 1e4).round() / 1e4;
         let stats = |vs: &[usize]| {
             let d: Vec<f64> = vs.iter().map(|&v| reg.vertex_distance_mm[v]).collect();
-            let s = DistanceStats::of(&d);
-            json!({"vertices": vs.len(), "mean": r4(s.mean), "p95": r4(s.p95), "max": r4(s.max)})
+            let mut out = json!(DistanceStats::of(&d).rounded());
+            out["vertices"] = json!(vs.len());
+            out
         };
         let parts: [(&str, &[usize]); 6] = [
             ("forehead", &forehead),

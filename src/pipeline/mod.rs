@@ -102,8 +102,8 @@ impl ScanLandmarks {
     }
 }
 
-/// Denoises `mesh` and detects its feature points with the default settings, as every batch
-/// command does before registering (`augment`, `evaluate`'s pose, the review queue).
+/// Denoises `mesh` and detects its feature points with the default settings, as the batch
+/// commands do before registering (`evaluate`'s pose, the review queue).
 pub fn detect_scan(mut mesh: Mesh) -> Result<LandmarkReport> {
     denoise::denoise(&mut mesh, &DenoiseParams::default())?;
     landmarks::detect(&mesh, &LandmarkParams::default())
@@ -184,16 +184,12 @@ pub fn prepare_scan(
 
 /// The gallery scans of `dir` (sorted).
 pub fn gallery_scans(dir: &Path, suffix: &str) -> Result<Vec<std::path::PathBuf>> {
-    let mut out: Vec<_> = std::fs::read_dir(dir)
-        .map_err(|e| crate::Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && p.file_stem()
-                    .is_some_and(|s| s.to_string_lossy().ends_with(suffix))
-                && io::MeshFormat::from_path(p).is_ok()
-        })
-        .collect();
-    out.sort();
+    let mut out = io::read_dir_sorted(dir)?;
+    out.retain(|p| {
+        p.is_file()
+            && p.file_stem()
+                .is_some_and(|s| s.to_string_lossy().ends_with(suffix))
+            && io::MeshFormat::from_path(p).is_ok()
+    });
     Ok(out)
 }

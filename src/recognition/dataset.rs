@@ -5,7 +5,7 @@
 //! (`cara1_frontal1.wrl`, `subj007_risa.wrl`). Other files are ignored.
 //!
 
-use crate::{Error, Result};
+use crate::{Result, io};
 use std::path::{Path, PathBuf};
 
 /// One scan file of a dataset.
@@ -17,27 +17,15 @@ pub struct ScanFile {
     pub path: PathBuf,
 }
 
-const MESH_EXTENSIONS: [&str; 6] = ["wrl", "vrml", "obj", "ply", "xyz", "txt"];
-
+/// A mesh file by its extension (the formats [`io::MeshFormat`] reads).
 pub(crate) fn is_mesh(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| MESH_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
-}
-
-pub(crate) fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .collect();
-    out.sort();
-    Ok(out)
+    io::MeshFormat::from_path(path).is_ok()
 }
 
 /// The scans of a dataset folder, sorted by subject then scan.
 pub fn list_scans(dir: &Path) -> Result<Vec<ScanFile>> {
     let mut out = Vec::new();
-    for path in read_dir_sorted(dir)? {
+    for path in io::read_dir_sorted(dir)? {
         if !path.is_file() || !is_mesh(&path) {
             continue;
         }

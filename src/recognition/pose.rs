@@ -17,10 +17,11 @@
 //! frontal1 and frontal2, outliers > 20°; a subject's face is not the mean face, and holes,
 //! hair and expressions change which points pair up), so rank-1 with it is 58 % against 70 %
 //! with the ground-truth pose and 20 % without any
-//! normalisation. The default pose source is now [`pose_from_landmarks`] on [`detect_landmarks`] (the registration's rigid
-//! fit to the generic face); this ICP is kept as a diagnostic (`--pose icp`).
+//! normalisation. The default pose source is now [`pose_from_landmarks`] (the registration's
+//! rigid fit to the generic face) on the points [`crate::pipeline::detect_scan`] finds; this
+//! ICP is kept as a diagnostic (`--pose icp`).
 //!
-//! **Landmark pose** ([`detect_landmarks`] then [`pose_from_landmarks`], `--pose auto`, the default): the scan is denoised
+//! **Landmark pose** ([`crate::pipeline::detect_scan`] then [`pose_from_landmarks`], `--pose auto`, the default): the scan is denoised
 //! (as `pipeline::prepare_scan` does), its feature points are detected, and the rotation is
 //! that of the registration's first step — Horn's absolute orientation of the generic face's
 //! feature vertices onto the detected points ([`crate::registration::horn_absolute_orientation`]);
@@ -308,17 +309,6 @@ pub fn pose_from_landmarks(
         nose_tip_in_scan: nose,
         face_from_scan: scan_from_generic.rotation_matrix().transpose(),
     })
-}
-
-/// Denoises a copy of `mesh` and detects its feature points, as the pipeline does before
-/// registration (`pipeline::prepare_mesh`); returns the points.
-pub fn detect_landmarks(mesh: &Mesh) -> Result<Landmarks> {
-    Ok(detect_report(mesh)?.landmarks)
-}
-
-/// [`detect_landmarks`] with the whole report (confidence, localisation, suspect reasons).
-pub fn detect_report(mesh: &Mesh) -> Result<crate::landmarks::LandmarkReport> {
-    crate::pipeline::detect_scan(mesh.clone())
 }
 
 #[cfg(test)]

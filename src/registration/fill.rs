@@ -2,11 +2,9 @@
 //! the harmonic fill of their radial offsets from the matched vertices around them.
 
 use crate::mesh::{Mesh, Topology};
-use serde::Serialize;
 
 /// Why a generic vertex was filled in rather than projected onto the scan.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Unmatched {
     /// Its ray missed the scan, in a patch of misses open to the generic face's outer border:
     /// beyond the scan's edge (hair the scanner did not see, the neck or ears cut off).
@@ -23,6 +21,14 @@ pub enum Unmatched {
 }
 
 impl Unmatched {
+    pub const ALL: [Unmatched; 4] = [
+        Unmatched::OutsideScan,
+        Unmatched::Hole,
+        Unmatched::FarSurface,
+        Unmatched::Outlier,
+    ];
+
+    /// The name the reports use.
     pub fn name(self) -> &'static str {
         match self {
             Unmatched::OutsideScan => "outside_scan",

@@ -208,6 +208,15 @@ impl DistanceStats {
             max: v[v.len() - 1],
         }
     }
+
+    /// Rounded to 0.1 µm, as the reports print them.
+    pub fn rounded(self) -> DistanceStats {
+        DistanceStats {
+            mean: round4(self.mean),
+            p95: round4(self.p95),
+            max: round4(self.max),
+        }
+    }
 }
 
 /// What [`register`] returns.
@@ -227,9 +236,9 @@ pub struct RegistrationResult {
     pub unmatched_reasons: Vec<Unmatched>,
     /// Triangles of the planar warp that the targets turned over (0 for sane landmarks).
     pub folded_warp_triangles: usize,
-    /// Distance of each registered vertex to the scan surface: the figures, and per vertex
-    /// (mm; at most 200).
+    /// Mean, p95 and max of `vertex_distance_mm`.
     pub surface_distance_mm: DistanceStats,
+    /// Distance of each registered vertex to the scan surface (mm; at most 200).
     pub vertex_distance_mm: Vec<f64>,
     /// Wall time of the registration (surface-distance figures included), ms.
     pub millis: f64,
@@ -249,15 +258,8 @@ impl RegistrationResult {
     /// How many vertices were left unmatched for each reason (of `among`, a sorted vertex
     /// list, when given).
     pub fn unmatched_by_reason(&self, among: Option<&[usize]>) -> BTreeMap<&'static str, usize> {
-        let mut out: BTreeMap<&'static str, usize> = [
-            Unmatched::OutsideScan,
-            Unmatched::Hole,
-            Unmatched::FarSurface,
-            Unmatched::Outlier,
-        ]
-        .iter()
-        .map(|r| (r.name(), 0))
-        .collect();
+        let mut out: BTreeMap<&'static str, usize> =
+            Unmatched::ALL.iter().map(|r| (r.name(), 0)).collect();
         for (&v, r) in self.unmatched_vertices.iter().zip(&self.unmatched_reasons) {
             if among.is_none_or(|a| a.binary_search(&(v as usize)).is_ok()) {
                 *out.entry(r.name()).or_default() += 1;
@@ -276,11 +278,7 @@ impl RegistrationResult {
         serde_json::json!({
             "rigid_rms_mm": round4(self.rigid_rms_mm),
             "landmark_residual_mm": residuals,
-            "surface_distance_mm": {
-                "mean": round4(self.surface_distance_mm.mean),
-                "p95": round4(self.surface_distance_mm.p95),
-                "max": round4(self.surface_distance_mm.max),
-            },
+            "surface_distance_mm": self.surface_distance_mm.rounded(),
             "unmatched_vertices": self.unmatched_vertices.len(),
             "unmatched_by_reason": self.unmatched_by_reason(None),
             "vertices": self.mesh.vertex_count(),
@@ -428,7 +426,7 @@ pub fn register_points(
     let topo = Topology::new(&generic.mesh);
     let n = warped.len();
     let mut offset = vec![0.0f64; n];
-    let mut matched = vec![false; n];
+    // `None`: projected onto the scan.
     let mut reason: Vec<Option<Unmatched>> = vec![None; n];
     let mut hit_local = vec![DVec3::ZERO; n];
     for (v, q) in warped.iter().enumerate() {
@@ -437,7 +435,6 @@ pub fn register_points(
         match projector.cast(theta, q.y) {
             Some(hit) if (hit.radius - r).abs() <= params.max_offset_mm => {
                 offset[v] = hit.radius - r;
-                matched[v] = true;
                 hit_local[v] = hit.local;
             }
             Some(_) => reason[v] = Some(Unmatched::FarSurface),
@@ -449,14 +446,14 @@ pub fn register_points(
     let mut outliers = Vec::new();
     let mut scratch = Vec::new();
     for v in 0..n {
-        if !matched[v] {
+        if reason[v].is_some() {
             continue;
         }
         scratch.clear();
         scratch.extend(
             topo.neighbours(v)
                 .iter()
-                .filter(|&&u| matched[u as usize])
+                .filter(|&&u| reason[u as usize].is_none())
                 .map(|&u| offset[u as usize]),
         );
         if scratch.len() >= 2 && (offset[v] - median(&mut scratch)).abs() > params.outlier_mm {
@@ -464,23 +461,23 @@ pub fn register_points(
         }
     }
     for &v in &outliers {
-        matched[v] = false;
         reason[v] = Some(Unmatched::Outlier);
     }
+    let matched: Vec<bool> = reason.iter().map(Option::is_none).collect();
     harmonic_fill(&topo, &matched, &mut offset);
     let mut positions = Vec::with_capacity(n);
     let mut unmatched_vertices = Vec::new();
     let mut unmatched_reasons = Vec::new();
     for v in 0..n {
-        let local = if matched[v] {
-            hit_local[v]
-        } else {
+        let local = if let Some(why) = reason[v] {
             unmatched_vertices.push(v as u32);
-            unmatched_reasons.push(reason[v].unwrap_or(Unmatched::Outlier));
+            unmatched_reasons.push(why);
             let q = warped[v];
             let r = q.x.hypot(q.z);
             let s = (r + offset[v]).max(0.0) / r.max(1e-12);
             DVec3::new(q.x * s, q.y, q.z * s)
+        } else {
+            hit_local[v]
         };
         positions.push(frame.to_world(local));
     }

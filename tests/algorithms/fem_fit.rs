@@ -3,6 +3,7 @@
 
 use crate::common;
 
+use facesynth::Mesh;
 use facesynth::fem::compare::{NO_EXPRESSION, compare_presets};
 use facesynth::fem::expressions::ExpressionSet;
 use facesynth::fem::fit::{FitParams, fit_expression};
@@ -10,26 +11,38 @@ use facesynth::fem::muscles::MuscleSet;
 use facesynth::fem::{FaceModel, FemParams};
 use glam::{DQuat, DVec3};
 
-#[test]
-fn fit_recovers_a_synthesized_expression() {
+/// The generic face's FEM model with the built-in muscles and its basis.
+fn generic_model() -> FaceModel {
     let face = facesynth::generic_face::build();
     let mut model = FaceModel::from_generic(&face, &FemParams::default()).unwrap();
     model.set_muscles(&MuscleSet::builtin()).unwrap();
     model.compute_basis().unwrap();
-    let names: Vec<String> = model.actuator_names();
-    let presets = ExpressionSet::builtin();
+    model
+}
+
+/// The model's own `preset` expression, moved by a small rigid motion the alignment must
+/// undo.
+fn moved_preset_scan(model: &FaceModel, presets: &ExpressionSet, preset: &str) -> Mesh {
     let truth = presets
-        .get("happiness")
+        .get(preset)
         .unwrap()
-        .activations_for(&names)
+        .activations_for(&model.actuator_names())
         .unwrap();
     let mut scan = model.deformed_surface(&truth).unwrap();
-    // A small rigid motion that the alignment must undo.
     let rot = DQuat::from_axis_angle(DVec3::Y, 0.03);
     for p in &mut scan.positions_mm {
         *p = rot * *p + DVec3::new(1.5, -1.0, 0.5);
     }
     scan.update_normals();
+    scan
+}
+
+#[test]
+fn fit_recovers_a_synthesized_expression() {
+    let model = generic_model();
+    let names: Vec<String> = model.actuator_names();
+    let presets = ExpressionSet::builtin();
+    let scan = moved_preset_scan(&model, &presets, "happiness");
     let fit = fit_expression(&model, None, &scan, None, &presets, &FitParams::default()).unwrap();
     println!(
         "rms before {:.3} after {:.3} closest {:?}\nfitted {:?}",
@@ -73,6 +86,8 @@ fn fit_a_synthetic_smile_scan() {
     .unwrap();
     model.set_muscles(&MuscleSet::builtin()).unwrap();
     model.compute_basis().unwrap();
+    let presets = ExpressionSet::builtin();
+    let params = FitParams::default();
     for scan_name in ["sonrisa", "risa"] {
         let path = clean.join(format!("subj002_{scan_name}.wrl"));
         let scan = facesynth::io::read_mesh(&path).unwrap();
@@ -86,8 +101,8 @@ fn fit_a_synthetic_smile_scan() {
             Some(&neutral),
             &scan,
             Some(&lm.landmarks),
-            &ExpressionSet::builtin(),
-            &FitParams::default(),
+            &presets,
+            &params,
         )
         .unwrap();
         println!(
@@ -161,15 +176,15 @@ fn fit_a_synthetic_smile_scan() {
             Some(&neutral),
             &scan,
             Some(&lm.landmarks),
-            &ExpressionSet::builtin(),
+            &presets,
             None,
-            &FitParams::default(),
+            &params,
         )
         .unwrap();
         let best = c.best();
         println!("{scan_name}: {best:?}");
         assert_eq!(c.rows[0].preset, NO_EXPRESSION);
-        assert_eq!(c.rows.len(), 1 + ExpressionSet::builtin().expressions.len());
+        assert_eq!(c.rows.len(), 1 + presets.expressions.len());
         let smiles = ["happiness", "broad_smile", "laughter"];
         for region in ["whole_face", "cheeks"] {
             let (preset, rms, none) = &best[region];
@@ -202,16 +217,9 @@ fn fit_a_synthetic_smile_scan() {
             p.z += 6.0;
         }
     }
-    let err = fit_expression(
-        &model,
-        Some(&neutral),
-        &scan,
-        None,
-        &ExpressionSet::builtin(),
-        &FitParams::default(),
-    )
-    .unwrap_err()
-    .to_string();
+    let err = fit_expression(&model, Some(&neutral), &scan, None, &presets, &params)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("forehead") && err.contains("stable parts"),
         "{err}"
@@ -222,22 +230,9 @@ fn fit_a_synthetic_smile_scan() {
 /// zero in every region while the neutral face is not, and an unknown preset is refused by name.
 #[test]
 fn compare_finds_the_preset_that_made_the_scan() {
-    let face = facesynth::generic_face::build();
-    let mut model = FaceModel::from_generic(&face, &FemParams::default()).unwrap();
-    model.set_muscles(&MuscleSet::builtin()).unwrap();
-    model.compute_basis().unwrap();
+    let model = generic_model();
     let presets = ExpressionSet::builtin();
-    let truth = presets
-        .get("happiness")
-        .unwrap()
-        .activations_for(&model.actuator_names())
-        .unwrap();
-    let mut scan = model.deformed_surface(&truth).unwrap();
-    let rot = DQuat::from_axis_angle(DVec3::Y, 0.03);
-    for p in &mut scan.positions_mm {
-        *p = rot * *p + DVec3::new(1.5, -1.0, 0.5);
-    }
-    scan.update_normals();
+    let scan = moved_preset_scan(&model, &presets, "happiness");
     let wanted = ["happiness".to_string(), "surprise".to_string()];
     let params = FitParams::default();
     let c = compare_presets(&model, None, &scan, None, &presets, Some(&wanted), &params).unwrap();

@@ -475,9 +475,6 @@ fn real_scans_give_the_same_points_in_any_orientation() {
     }
 }
 
-/// Made-harder real scans: a torso (a broad surface below the chin that bulges further towards
-/// the scanner than the nose) or a hair cap (a bumpy dome over the forehead) added to a real
-/// scan does not move the ten anatomical points by more than 2 mm.
 /// Adds a grid patch sampled every `step` mm over (x, y) ∈ [u0, u1] × [v0, v1] (scanner
 /// frame), depth z(x, y), facing +z.
 fn add_patch(m: &mut Mesh, u: (f64, f64), v: (f64, f64), step: f64, z: &dyn Fn(f64, f64) -> f64) {
@@ -549,6 +546,9 @@ fn a_concave_dish_far_behind_the_eye_is_not_the_outer_eye_corner() {
     );
 }
 
+/// Made-harder real scans: a torso (a broad surface below the chin that bulges further towards
+/// the scanner than the nose) or a hair cap (a bumpy dome over the forehead) added to a real
+/// scan does not move the ten anatomical points by more than 2 mm.
 #[test]
 fn clutter_below_the_chin_or_over_the_forehead_does_not_move_the_points() {
     let base = denoised(&common::gavab("cara1_frontal1.wrl"));
@@ -556,25 +556,26 @@ fn clutter_below_the_chin_or_over_the_forehead_does_not_move_the_points() {
     let tip = level.landmarks.get(FeaturePoint::NoseTip);
     let chin = level.landmarks.get(FeaturePoint::Chin);
     let forehead = level.landmarks.get(FeaturePoint::Forehead);
-    let patch = |m: &mut Mesh, u, v, z: &dyn Fn(f64, f64) -> f64| add_patch(m, u, v, 2.0, z);
     // Torso: 360 mm wide, from 40 mm below the chin down 200 mm, its front 15 mm in front of
     // the nose tip (a chest seen from a scanner level with the face), rounded to the sides.
     let mut torso = base.clone();
     let top = chin.y - 40.0;
-    patch(
+    add_patch(
         &mut torso,
         (tip.x - 180.0, tip.x + 180.0),
         (top - 200.0, top),
+        2.0,
         &|x, _| tip.z + 15.0 - ((x - tip.x) / 60.0).powi(2) * 10.0,
     );
     // Hair cap: a bumpy dome from 20 mm above the forehead point, 200 mm wide, 10 mm in front
     // of the brow's depth.
     let mut hair = base.clone();
     let low = forehead.y + 20.0;
-    patch(
+    add_patch(
         &mut hair,
         (tip.x - 100.0, tip.x + 100.0),
         (low, low + 80.0),
+        2.0,
         &|x, y| {
             forehead.z + 10.0 - ((x - tip.x) / 50.0).powi(2) * 8.0 - (y - low) * 0.3
                 + 3.0 * (x * 0.3).sin() * (y * 0.25).cos()

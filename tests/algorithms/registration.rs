@@ -417,10 +417,8 @@ fn debug_one() {
     let generic = generic();
     let r = registration::register(&generic, &scan, &truth.landmarks, &Default::default()).unwrap();
     println!("{}", r.report_json());
-    let idx = facesynth::mesh::SurfaceIndex::new(&scan, 4.0);
     let un: std::collections::HashSet<u32> = r.unmatched_vertices.iter().copied().collect();
-    for (v, p) in r.mesh.positions_mm.iter().enumerate() {
-        let d = idx.distance(*p, 200.0);
+    for (v, &d) in r.vertex_distance_mm.iter().enumerate() {
         if d > 2.0 {
             let g = generic.mesh.positions_mm[v];
             println!(

@@ -163,23 +163,27 @@ fn fit_expression_writes_a_loadable_preset() {
     let preset = dir.path().join("smile.ron");
     let residual = dir.path().join("residual.ply");
     let picture = dir.path().join("residual.png");
-    let v = run(&[
-        "fit-expression",
-        "--residual-ply",
-        residual.to_str().unwrap(),
-        "--residual-png",
-        picture.to_str().unwrap(),
+    // The two scans and their points, as fit-expression and compare-expression take them.
+    let pair = [
         neutral.to_str().unwrap(),
         smile.to_str().unwrap(),
         "--landmarks",
         lm_paths[0].to_str().unwrap(),
         "--expression-landmarks",
         lm_paths[1].to_str().unwrap(),
-        "--out",
-        preset.to_str().unwrap(),
-        "--name",
-        "learned_smile",
-    ]);
+    ];
+    let v = run(&[
+        &[
+            "fit-expression",
+            "--residual-ply",
+            residual.to_str().unwrap(),
+            "--residual-png",
+            picture.to_str().unwrap(),
+        ][..],
+        &pair,
+        &["--out", preset.to_str().unwrap(), "--name", "learned_smile"],
+    ]
+    .concat());
     println!("{v}");
     // Measured 1.42 -> 0.66 mm: the fit explains over half the expression's displacement.
     let (before, after) = (
@@ -251,23 +255,21 @@ fn fit_expression_writes_a_loadable_preset() {
     );
     // Side by side with the scan it was learned from, the learned preset beats a built-in
     // smile and the neutral face over the whole face and on the mouth.
-    let compare = |extra: &[&'static str]| -> Vec<String> {
-        let mut args = vec![
-            "compare-expression",
-            neutral.to_str().unwrap(),
-            smile.to_str().unwrap(),
-            "--landmarks",
-            lm_paths[0].to_str().unwrap(),
-            "--expression-landmarks",
-            lm_paths[1].to_str().unwrap(),
-            "--preset-file",
-            preset.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        args.iter().map(|s| s.to_string()).collect()
+    let compare = |extra: &[&'static str]| -> Vec<&str> {
+        [
+            &["compare-expression"][..],
+            &pair,
+            &["--preset-file", preset.to_str().unwrap()],
+            extra,
+        ]
+        .concat()
     };
-    let args = compare(&["--preset", "learned_smile", "--preset", "happiness"]);
-    let c = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let c = run(&compare(&[
+        "--preset",
+        "learned_smile",
+        "--preset",
+        "happiness",
+    ]));
     println!("{c}");
     let rows = c["rows"].as_array().unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r["preset"].as_str().unwrap()).collect();

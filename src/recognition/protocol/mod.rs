@@ -37,8 +37,8 @@ use super::expression_weights::{
 };
 use super::fisherfaces::{FisherModel, FisherParams, Method, Metric};
 use super::pose::{
-    PoseParams, PosePoints, ScanPose, align_to_reference, detect_landmarks, detect_report,
-    mean_image, pose_from_landmarks, refine_pose,
+    PoseParams, PosePoints, ScanPose, align_to_reference, mean_image, pose_from_landmarks,
+    refine_pose,
 };
 use super::range_image::{RangeImage, RangeImageParams, range_image};
 use crate::generic_face::GenericFace;
@@ -56,8 +56,8 @@ mod samples;
 mod scoring;
 mod start_pose;
 
+use crate::recognition::dataset::is_mesh;
 pub use crate::recognition::dataset::{ScanFile, list_scans};
-use crate::recognition::dataset::{is_mesh, read_dir_sorted};
 pub use crate::recognition::sample::{Failure, Sample};
 use learned::{learned_deviations, training_scans};
 use samples::make_sample;

@@ -302,7 +302,7 @@ pub fn collect_samples(
                             ),
                         });
                     } else if dir.is_dir() {
-                        for p in read_dir_sorted(&dir)? {
+                        for p in crate::io::read_dir_sorted(&dir)? {
                             if p.is_file() && is_mesh(&p) {
                                 synthetic_jobs.push((p, frame, s.subject.clone()));
                             }

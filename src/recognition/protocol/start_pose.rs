@@ -30,7 +30,8 @@ pub fn truth_nose_tip(scan_path: &Path) -> Result<DVec3> {
 /// The nose tip of a scan, mm, scan frame: detected on the denoised mesh (the ground truth
 /// beside a generated scan is read only by [`PoseSource::Truth`]).
 pub fn nose_tip(scan_path: &Path) -> Result<DVec3> {
-    Ok(detect_landmarks(&io::read_mesh(scan_path)?)?.get(crate::FeaturePoint::NoseTip))
+    let report = crate::pipeline::detect_scan(io::read_mesh(scan_path)?)?;
+    Ok(report.landmarks.get(crate::FeaturePoint::NoseTip))
 }
 
 /// The ground-truth frontalising rotation (`face_from_scan`): the transpose of `pose.rotation`
@@ -89,7 +90,7 @@ pub fn scan_pose_checked(
                     Vec::new(),
                 ));
             }
-            let report = detect_report(&io::read_mesh(scan_path)?)?;
+            let report = crate::pipeline::detect_scan(io::read_mesh(scan_path)?)?;
             match report.localisation {
                 Some(l) if !report.suspect.is_empty() => Ok((
                     ScanPose {
