@@ -123,8 +123,7 @@ impl Detector<'_> {
             (inner_r, inner_l)
         };
         // Step 4.
-        let mut outer_r = self.outer_eye(&frame, inner_r, -1.0);
-        let mut outer_l = self.outer_eye(&frame, inner_l, 1.0);
+        let (mut outer_r, mut outer_l) = self.outer_eyes(&frame, inner_r, inner_l);
         if self.params.outer_eye_at_fissure {
             outer_r = self.outer_eye_fissure_end(&frame, outer_r, -1.0);
             outer_l = self.outer_eye_fissure_end(&frame, outer_l, 1.0);

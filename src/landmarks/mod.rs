@@ -87,9 +87,12 @@
 //!    canthus.
 //! 4. **Outer eye corners** (`outer_eyes.rs`). A box per side from the inner corner and
 //!    Table 2's inner–outer distance; of the concave regions (`S < 0.3` plus the curvedness
-//!    floor) of at least [`OUTER_EYE_MIN_REGION_VERTICES`], the vertex nearest the mean
+//!    floor) of at least [`OUTER_EYE_MIN_REGION_VERTICES`], the vertices near the mean
 //!    outer-corner offset [`OUTER_EYE_OFFSET_MM`] (and depth, [`OUTER_EYE_DEPTH_MM`]; none
-//!    more than [`OUTER_EYE_MAX_BEHIND_MM`] behind the inner corner). The
+//!    more than [`OUTER_EYE_MAX_BEHIND_MM`] behind the inner corner), chosen as a pair: the
+//!    two sides' summed squared misses plus [`OUTER_EYE_SYMMETRY_WEIGHT`] times the squared
+//!    difference of their offsets from their inner corners (a face is bilaterally
+//!    symmetric; on real skin a crease below one canthus was often nearer the mean). The
 //!    paper's `S < 0.5`, `|∂/∂x| ≤ 0.5`, `∇xy < 0.25` region is often empty (the lateral
 //!    canthus faces sideways) and its centroid was 8–12 mm off on the benchmark. Then each
 //!    corner moves to the lateral end of its lid fissure (the trench of step 3's refinement,
@@ -177,8 +180,8 @@ pub use nose_corners::{
 pub use outer_eyes::{
     OUTER_EYE_CONCAVE_MAX_S, OUTER_EYE_DEPTH_MM, OUTER_EYE_DEPTH_WEIGHT, OUTER_EYE_MAX_BEHIND_MM,
     OUTER_EYE_MAX_DX, OUTER_EYE_MAX_GRAD_XY, OUTER_EYE_MAX_S, OUTER_EYE_MIN_REGION_VERTICES,
-    OUTER_EYE_OFFSET_MM, OUTER_FISSURE_BOX_MM, OUTER_FISSURE_FLOOR_FRACTION,
-    OUTER_FISSURE_MAX_RISE_MM, OUTER_FISSURE_MIN_DEPTH_MM,
+    OUTER_EYE_OFFSET_MM, OUTER_EYE_SYMMETRY_WEIGHT, OUTER_FISSURE_BOX_MM,
+    OUTER_FISSURE_FLOOR_FRACTION, OUTER_FISSURE_MAX_RISE_MM, OUTER_FISSURE_MIN_DEPTH_MM,
 };
 pub use segmentation::{ENCLOSED_ISLAND_BAND_MM, ENCLOSED_ISLAND_MIN_VERTICES, FACE_MIN_DZ};
 pub use suspect::{PROFILE_MIN_YAW_DEG, SUSPECT_FAILED_CHECKS, suspect_reasons};
