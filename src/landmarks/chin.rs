@@ -25,6 +25,17 @@ pub const CHIN_WALK_SEED_BAND_MM: f64 = 20.0;
 /// jump) does not win by being lower. 1.0 rather than the slightly more accurate 0.8, with
 /// which more walks ran on under the jaw (docs/measurements.md).
 pub const CHIN_FORWARD_WEIGHT: f64 = 1.0;
+/// Our step 9: a chin found within this of the walk's lowest line (mm) is at the search's
+/// edge, not at a tangent point: the profile below the chin never turned more than 45° back
+/// from vertical (a chin running smoothly into the neck), so down-and-forward grew all the
+/// way to where the walk was cut off. About three rows of a GavabDB scan (1.5–2 mm): the
+/// strip's centre-line penalty and the rows' spacing left such a winner up to 3.6 mm above
+/// the line on the benchmark.
+pub const CHIN_AT_LIMIT_MM: f64 = 5.0;
+/// Our step 9: then the chin is the reached vertex furthest in `(0, −1, this)`: the tangent
+/// point of a line atan(1/2) = 27° back from vertical, on the bend between the chin's front
+/// (vertical) and an underside sloping back less than 45°.
+pub const CHIN_SHALLOW_FORWARD_WEIGHT: f64 = 2.0;
 /// Our step 9: the chin walk passes vertices whose mesh normal has `n_z >` this.
 pub const CHIN_WALK_MIN_NZ: f64 = 0.5;
 
@@ -33,8 +44,10 @@ impl Detector<'_> {
     /// mouth corners; seeds: every strip vertex 12–32 mm below the mouth line), along mesh
     /// edges, through vertices whose **mesh** normal faces the scanner
     /// (`n_z > 0.5`); the chin is the reached vertex furthest down-and-forward
-    /// ([`CHIN_FORWARD_WEIGHT`]), less half its distance from the strip's centre line. The scan's chin–neck depth jump, or the underside turning
-    /// away, ends the walk. Changed from the paper (the lowest point of the biggest
+    /// ([`CHIN_FORWARD_WEIGHT`]), less half its distance from the strip's centre line; where
+    /// that is within [`CHIN_AT_LIMIT_MM`] of the walk's lowest line, the vertex furthest
+    /// along [`CHIN_SHALLOW_FORWARD_WEIGHT`] instead. The scan's chin–neck depth jump, or the
+    /// underside turning away, ends the walk. Changed from the paper (the lowest point of the biggest
     /// `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm above
     /// the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
     /// fitted one: the 5-ring fit smooths normals across the chin's rim and lets the walk
@@ -60,11 +73,18 @@ impl Detector<'_> {
                 }
             })
             .collect();
-        let score = |v: usize| {
+        let score = |v: usize, forward: f64| {
             key[v] - 0.5 * (frame.uv(self.p(v)).x - mid_u).abs()
-                + CHIN_FORWARD_WEIGHT * (self.p(v).z - frame.origin.z)
+                + forward * (self.p(v).z - frame.origin.z)
         };
-        match self.strip_walk_by(&key, band, score) {
+        let at_limit = |v: usize| frame.uv(self.p(v)).y < lowest + CHIN_AT_LIMIT_MM;
+        let chin = match self.strip_walk_by(&key, band, |v| score(v, CHIN_FORWARD_WEIGHT)) {
+            Some(v) if at_limit(v) => {
+                self.strip_walk_by(&key, band, |v| score(v, CHIN_SHALLOW_FORWARD_WEIGHT))
+            }
+            found => found,
+        };
+        match chin {
             Some(v) => v,
             None => self.fallback(
                 FeaturePoint::Chin,
@@ -72,6 +92,71 @@ impl Detector<'_> {
                 frame,
                 DVec2::new(mid_u, -NOSE_TIP_TO_CHIN.avg_mm),
             ),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::curvature;
+    use crate::landmarks::LandmarkParams;
+    use crate::mesh::{Mesh, Topology};
+    use glam::DVec3;
+
+    /// The chin of a profile surface (face frame: nose tip at the origin, y up, facing +z):
+    /// the chin's front at z = −20 mm down to y = −80 mm, then a 3 mm-wide bend into an
+    /// underside receding `degrees` from vertical, 60 mm wide, rows 1.5 mm apart.
+    fn chin_of_profile(degrees: f64) -> f64 {
+        let (step, r) = (1.5, 3.0);
+        let slope = degrees.to_radians().tan();
+        let z = |y: f64| -20.0 - slope * r * ((-80.0 - y) / r).exp().ln_1p();
+        let (nx, ny) = (41, 61);
+        let mut positions = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let (x, y) = (-30.0 + step * i as f64, -40.0 - step * j as f64);
+                positions.push(DVec3::new(x, y, z(y)));
+            }
+        }
+        let at = |i: usize, j: usize| (j * nx + i) as u32;
+        let mut faces = Vec::new();
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                // Counter-clockwise seen from +z (rows go down).
+                faces.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
+                faces.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+            }
+        }
+        let mesh = Mesh::from_faces(positions, faces);
+        let params = LandmarkParams::default();
+        let topology = Topology::new(&mesh);
+        let desc = curvature::compute_with_topology(&mesh, &topology, &params.curvature).unwrap();
+        let mut detector = Detector {
+            mesh: &mesh,
+            topology: &topology,
+            desc: &desc,
+            params: &params,
+            warnings: Vec::new(),
+            prior_nose: None,
+            guessed: Vec::new(),
+        };
+        let v = detector.chin(&Frame::new(DVec3::ZERO, 0.0), 0.0, -50.0);
+        assert!(detector.guessed.is_empty());
+        mesh.positions_mm[v].y
+    }
+
+    /// The chin is at the bend under the chin's front, whether the underside turns back
+    /// steeply (the 45° tangent point) or runs into the neck at less than 45° (without the
+    /// second try the chin went to the walk's lowest line, 25 mm below).
+    #[test]
+    fn the_chin_is_the_bend_whether_or_not_the_underside_turns_back_more_than_45_degrees() {
+        for degrees in [55.0, 35.0] {
+            let y = chin_of_profile(degrees);
+            assert!(
+                (y + 80.0).abs() <= 4.0,
+                "underside at {degrees}°: chin at y = {y:.1} mm, the bend at −80"
+            );
         }
     }
 }

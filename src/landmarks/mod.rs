@@ -124,8 +124,11 @@
 //! 9. **Chin border** (`chin.rs`). The paper's biggest `S > 0.85`, `∇xy < 0.3` region is the
 //!    front of the chin, ~10 mm above the jaw-contour chin point (iBUG 8). Here: walk down a
 //!    midline strip from the mouth along mesh edges through vertices whose mesh normal faces
-//!    the scanner; the lowest vertex reached is the chin (the chin–neck depth jump stops the
-//!    walk).
+//!    the scanner; the chin is the vertex reached furthest down-and-forward, the tangent
+//!    point of a 45° line (the chin–neck depth jump stops the walk). Where that lies at the
+//!    walk's lowest line ([`CHIN_AT_LIMIT_MM`]), the underside never turned back 45° (a chin
+//!    running into the neck) and the tangent point of a steeper line
+//!    ([`CHIN_SHALLOW_FORWARD_WEIGHT`]) is taken.
 //!
 //! # Accuracy and speed
 //!
@@ -160,8 +163,9 @@ mod table2;
 
 pub use cheeks::{CHEEK_MAX_DZ, CHEEK_STRIP_GAP_MM, CHEEK_STRIP_HALF_MM};
 pub use chin::{
-    CHIN_FORWARD_WEIGHT, CHIN_MAX_GRAD_XY, CHIN_MIN_S, CHIN_WALK_MARGIN_MM, CHIN_WALK_MIN_NZ,
-    CHIN_WALK_SEED_BAND_MM, CHIN_WALK_START_BELOW_MOUTH_MM,
+    CHIN_AT_LIMIT_MM, CHIN_FORWARD_WEIGHT, CHIN_MAX_GRAD_XY, CHIN_MIN_S,
+    CHIN_SHALLOW_FORWARD_WEIGHT, CHIN_WALK_MARGIN_MM, CHIN_WALK_MIN_NZ, CHIN_WALK_SEED_BAND_MM,
+    CHIN_WALK_START_BELOW_MOUTH_MM,
 };
 pub use consensus::{CONSENSUS_KEEP_MM, CONSENSUS_TILT_DEG, UNSTABLE_SPREAD_MM};
 pub use detector::FEATURE_MIN_CURVEDNESS_PER_MM;
