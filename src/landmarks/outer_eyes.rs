@@ -15,9 +15,9 @@ pub const OUTER_EYE_MAX_DX: f64 = 0.5;
 pub const OUTER_EYE_MAX_GRAD_XY: f64 = 0.25;
 /// Our step 4: outer eye corners lie in concave regions with `S <` this.
 pub const OUTER_EYE_CONCAVE_MAX_S: f64 = 0.3;
-/// Our step 4: concave regions of fewer vertices than this are noise. The corner is the
-/// vertex of any larger region nearest the prior (not only of the biggest region), which
-/// cut the mean error by 0.7–1.1 mm on the benchmark (docs/measurements.md).
+/// Our step 4: concave regions of fewer vertices than this are noise. Every vertex of any
+/// larger region is a candidate (not only of the biggest region), which cut the mean error by
+/// 0.7–1.1 mm on the benchmark (docs/measurements.md).
 pub const OUTER_EYE_MIN_REGION_VERTICES: usize = 5;
 /// Our step 4: average outer eye corner relative to the inner one (outwards, up), mm
 /// (Table 2's inner–outer horizontal range 15.9–39.7 mm; 26 mm measured on the benchmark).
@@ -59,13 +59,13 @@ pub const OUTER_FISSURE_FLOOR_FRACTION: f64 = 0.5;
 pub const OUTER_FISSURE_MAX_RISE_MM: f64 = 4.0;
 
 impl Detector<'_> {
-    /// Step 4, both sides together: per side, the concave vertices of [`Self::outer_eye_candidates`]
-    /// score their squared miss of the average outer corner position; the pair chosen
-    /// minimises both misses plus [`OUTER_EYE_SYMMETRY_WEIGHT`] times the squared difference of
-    /// their in-plane offsets from their own inner corners (lateral, up): a face is
-    /// bilaterally symmetric, so the two canthi lie alike beside their medial ones. A side
-    /// without candidates is placed at its average position (a guessed point) and the other
-    /// side chooses alone. Returns (right, left).
+    /// Step 4, both sides together: per side, the concave vertices of
+    /// [`Self::outer_eye_candidates`] score their squared miss of the average outer corner
+    /// position; the pair chosen minimises both misses plus [`OUTER_EYE_SYMMETRY_WEIGHT`]
+    /// times the squared difference of their in-plane offsets from their own inner corners
+    /// (lateral, up): a face is bilaterally symmetric, so the two canthi lie alike beside
+    /// their medial ones. A side without candidates is placed at its average position (a
+    /// guessed point) and the other side chooses alone. Returns (right, left).
     pub(super) fn outer_eyes(
         &mut self,
         frame: &Frame,
@@ -86,9 +86,9 @@ impl Detector<'_> {
     }
 
     /// Step 4, one side: in a box from the inner corner (Table 2's inner–outer distance), the
-    /// vertices of every concave region (`S < 0.3`, curvedness ≥ [`FEATURE_MIN_CURVEDNESS_PER_MM`])
-    /// of at least [`OUTER_EYE_MIN_REGION_VERTICES`], each with its squared miss of the average
-    /// outer corner position (26 mm out, 1.5 mm up and [`OUTER_EYE_DEPTH_MM`] behind the inner
+    /// vertices of every concave region (`S < 0.3`, curvedness ≥
+    /// [`FEATURE_MIN_CURVEDNESS_PER_MM`]) of at least [`OUTER_EYE_MIN_REGION_VERTICES`], each
+    /// with its squared miss of the average outer corner position (26 mm out, 1.5 mm up and [`OUTER_EYE_DEPTH_MM`] behind the inner
     /// corner, face frame; depth weighted by [`OUTER_EYE_DEPTH_WEIGHT`]). Changed from the
     /// paper: its `S < 0.5`, `|∂/∂x| ≤ 0.5`, `∇xy < 0.25` region was empty on 1 neutral scan
     /// in 3 (the lateral canthus faces sideways by more than 14°) and its centroid was 8–12 mm
