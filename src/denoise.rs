@@ -603,25 +603,7 @@ fn median(values: &mut [f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// `nx × ny` vertex grid of quads, spacing 1 mm, z = f(x, y).
-    pub(crate) fn grid(nx: u32, ny: u32, f: impl Fn(f64, f64) -> f64) -> Mesh {
-        let mut p = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                let (x, y) = (i as f64, j as f64);
-                p.push(DVec3::new(x, y, f(x, y)));
-            }
-        }
-        let mut faces = Vec::new();
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                let v = j * nx + i;
-                faces.push([v, v + 1, v + 1 + nx, v + nx]);
-            }
-        }
-        Mesh::from_faces(p, faces)
-    }
+    use crate::test_support::grid;
 
     /// The hand-written normal equations and Cholesky of `solve_terms` give nalgebra's
     /// least-squares solution, recover an exact quadric, and refuse a collinear ring.

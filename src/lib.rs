@@ -50,6 +50,28 @@ pub use mesh::Mesh;
 /// Helpers shared by the unit tests.
 #[cfg(test)]
 pub(crate) mod test_support {
+    use crate::Mesh;
+    use glam::DVec3;
+
+    /// `nx × ny` vertex grid of quads, spacing 1 mm, z = f(x, y).
+    pub fn grid(nx: u32, ny: u32, f: impl Fn(f64, f64) -> f64) -> Mesh {
+        let mut p = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let (x, y) = (i as f64, j as f64);
+                p.push(DVec3::new(x, y, f(x, y)));
+            }
+        }
+        let mut faces = Vec::new();
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                let v = j * nx + i;
+                faces.push([v, v + 1, v + 1 + nx, v + nx]);
+            }
+        }
+        Mesh::from_faces(p, faces)
+    }
+
     /// A seeded uniform generator on [-0.5, 0.5) (64-bit LCG): repeatable test data without
     /// a random-number crate.
     pub fn uniform(seed: u64) -> impl FnMut() -> f64 {

@@ -549,7 +549,7 @@ mod tests {
     /// as far from the surface as from its twin.
     #[test]
     fn surface_distance_tells_sliding_along_the_surface_from_leaving_it() {
-        let clean = super::super::tests::grid(11, 11, |_, _| 0.0);
+        let clean = crate::test_support::grid(11, 11, |_, _| 0.0);
         let mut noisy = clean.clone();
         let (slid, lifted) = (3 * 11 + 3, 7 * 11 + 7);
         noisy.positions_mm[slid].x += 3.0;

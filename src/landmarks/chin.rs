@@ -47,9 +47,9 @@ impl Detector<'_> {
     /// ([`CHIN_FORWARD_WEIGHT`]), less half its distance from the strip's centre line; where
     /// that is within [`CHIN_AT_LIMIT_MM`] of the walk's lowest line, the vertex furthest
     /// along [`CHIN_SHALLOW_FORWARD_WEIGHT`] instead. The scan's chin–neck depth jump, or the
-    /// underside turning away, ends the walk. Changed from the paper (the lowest point of the biggest
-    /// `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm above
-    /// the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
+    /// underside turning away, ends the walk. Changed from the paper (the lowest point of the
+    /// biggest `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm
+    /// above the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
     /// fitted one: the 5-ring fit smooths normals across the chin's rim and lets the walk
     /// run on down the neck.
     pub(super) fn chin(&mut self, frame: &Frame, mid_u: f64, mouth_v: f64) -> usize {
@@ -77,13 +77,23 @@ impl Detector<'_> {
             key[v] - 0.5 * (frame.uv(self.p(v)).x - mid_u).abs()
                 + forward * (self.p(v).z - frame.origin.z)
         };
-        let at_limit = |v: usize| frame.uv(self.p(v)).y < lowest + CHIN_AT_LIMIT_MM;
-        let chin = match self.strip_walk_by(&key, band, |v| score(v, CHIN_FORWARD_WEIGHT)) {
-            Some(v) if at_limit(v) => {
-                self.strip_walk_by(&key, band, |v| score(v, CHIN_SHALLOW_FORWARD_WEIGHT))
-            }
-            found => found,
+        // The reached vertex of largest score; the first reached (the start) wins ties.
+        let furthest = |reached: &[usize], forward: f64| {
+            (reached.iter().copied()).fold(reached[0], |best, v| {
+                if score(v, forward) > score(best, forward) {
+                    v
+                } else {
+                    best
+                }
+            })
         };
+        let at_limit = |v: usize| frame.uv(self.p(v)).y < lowest + CHIN_AT_LIMIT_MM;
+        let chin = self.strip_walk(&key, band).map(|reached| {
+            match furthest(&reached, CHIN_FORWARD_WEIGHT) {
+                v if at_limit(v) => furthest(&reached, CHIN_SHALLOW_FORWARD_WEIGHT),
+                v => v,
+            }
+        });
         match chin {
             Some(v) => v,
             None => self.fallback(
@@ -101,34 +111,20 @@ mod tests {
     use super::*;
     use crate::curvature;
     use crate::landmarks::LandmarkParams;
-    use crate::mesh::{Mesh, Topology};
+    use crate::mesh::Topology;
+    use crate::test_support::grid;
     use glam::DVec3;
 
     /// The chin of a profile surface (face frame: nose tip at the origin, y up, facing +z):
     /// the chin's front at z = −20 mm down to y = −80 mm, then a 3 mm-wide bend into an
-    /// underside receding `degrees` from vertical, 60 mm wide, rows 1.5 mm apart.
+    /// underside receding `degrees` from vertical; 60 mm wide, from y = −40 to −130 mm.
     fn chin_of_profile(degrees: f64) -> f64 {
-        let (step, r) = (1.5, 3.0);
+        let r = 3.0;
         let slope = degrees.to_radians().tan();
         let z = |y: f64| -20.0 - slope * r * ((-80.0 - y) / r).exp().ln_1p();
-        let (nx, ny) = (41, 61);
-        let mut positions = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                let (x, y) = (-30.0 + step * i as f64, -40.0 - step * j as f64);
-                positions.push(DVec3::new(x, y, z(y)));
-            }
-        }
-        let at = |i: usize, j: usize| (j * nx + i) as u32;
-        let mut faces = Vec::new();
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                // Counter-clockwise seen from +z (rows go down).
-                faces.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
-                faces.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
-            }
-        }
-        let mesh = Mesh::from_faces(positions, faces);
+        // The grid's corner (0, 0) lies 30 mm right of and 130 mm below the nose tip.
+        let nose_tip = DVec3::new(30.0, 130.0, 0.0);
+        let mesh = grid(61, 91, |_, y| z(y - nose_tip.y));
         let params = LandmarkParams::default();
         let topology = Topology::new(&mesh);
         let desc = curvature::compute_with_topology(&mesh, &topology, &params.curvature).unwrap();
@@ -141,9 +137,9 @@ mod tests {
             prior_nose: None,
             guessed: Vec::new(),
         };
-        let v = detector.chin(&Frame::new(DVec3::ZERO, 0.0), 0.0, -50.0);
+        let v = detector.chin(&Frame::new(nose_tip, 0.0), 0.0, -50.0);
         assert!(detector.guessed.is_empty());
-        mesh.positions_mm[v].y
+        mesh.positions_mm[v].y - nose_tip.y
     }
 
     /// The chin is at the bend under the chin's front, whether the underside turns back

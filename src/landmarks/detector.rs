@@ -242,14 +242,9 @@ impl Detector<'_> {
     /// A walk along a strip: `key[v]` is NaN outside the strip, else the distance along the
     /// walk. Starts from every strip vertex within `seed_band_mm` of the smallest key,
     /// follows mesh edges inside the strip (so depth jumps, holes and the hairline stop it),
-    /// and returns the reached vertex of largest `score`.
-    /// Every strip vertex within `seed_band_mm` of the smallest key seeds the walk.
-    pub(super) fn strip_walk_by(
-        &self,
-        key: &[f64],
-        seed_band_mm: f64,
-        score: impl Fn(usize) -> f64,
-    ) -> Option<usize> {
+    /// and returns the vertices reached, the start (the smallest key) first, then in the order
+    /// the walk reached them; `None` where the strip is empty.
+    pub(super) fn strip_walk(&self, key: &[f64], seed_band_mm: f64) -> Option<Vec<usize>> {
         let start = (0..key.len())
             .filter(|&v| !key[v].is_nan())
             .min_by(|&a, &b| key[a].total_cmp(&key[b]))?;
@@ -261,11 +256,9 @@ impl Detector<'_> {
         for &v in &stack {
             seen[v] = true;
         }
-        let mut best = start;
+        let mut reached = vec![start];
         while let Some(v) = stack.pop() {
-            if score(v) > score(best) {
-                best = v;
-            }
+            reached.push(v);
             for &u in self.topology.neighbours(v) {
                 let u = u as usize;
                 if mask[u] && !seen[u] {
@@ -274,7 +267,7 @@ impl Detector<'_> {
                 }
             }
         }
-        Some(best)
+        Some(reached)
     }
 
     /// The vertex nearest a Table 2 prior position (face frame), with a warning.

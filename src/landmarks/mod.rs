@@ -99,8 +99,8 @@
 //!    at least [`OUTER_FISSURE_MIN_DEPTH_MM`] deep, in a box [`OUTER_FISSURE_BOX_MM`] around
 //!    it; the end of its floor, half its deepest relief, so that a wrinkle running on from
 //!    the canthus does not carry it away) unless that end is more than 8 mm away or
-//!    [`OUTER_FISSURE_MAX_RISE_MM`] in front of it: the fixed offset from the inner corner scattered the point ±5–6 mm along the
-//!    fissure, as the eyes' widths vary.
+//!    [`OUTER_FISSURE_MAX_RISE_MM`] in front of it: the fixed offset from the inner corner
+//!    scattered the point ±5–6 mm along the fissure, as the eyes' widths vary.
 //! 5. **Nose corners** (`nose_corners.rs`). The paper's `|∂/∂z| ≤ 0.5`, `|∂/∂x| > 0.65`
 //!    region (the side walls of the nose) gives the widest points of the alae; the ground
 //!    truth we score against (iBUG 31/35) is the nostril base, lower and more medial, which
@@ -133,8 +133,8 @@
 //! # Accuracy and speed
 //!
 //! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 37–40 of
-//! 40 neutral scans have all 9 points within 10 mm (seven seeds; 39 on the one made after the
-//! last change). Real scans in `../shared/data`: 28 of 34 agree within 12 mm with an
+//! 40 neutral scans have all scored points within 10 mm (nine seeds; 39 on the one made after
+//! the last change). Real scans in `../shared/data`: 30 of 34 agree within 12 mm with an
 //! independent detector (`scripts/real_landmarks.sh`; the two profiles and the worst
 //! disagreement, cara46_frontal1, are flagged suspect). Denoise + detection, release
 //! build on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1).

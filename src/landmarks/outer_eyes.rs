@@ -88,8 +88,9 @@ impl Detector<'_> {
     /// Step 4, one side: in a box from the inner corner (Table 2's inner–outer distance), the
     /// vertices of every concave region (`S < 0.3`, curvedness ≥
     /// [`FEATURE_MIN_CURVEDNESS_PER_MM`]) of at least [`OUTER_EYE_MIN_REGION_VERTICES`], each
-    /// with its squared miss of the average outer corner position (26 mm out, 1.5 mm up and [`OUTER_EYE_DEPTH_MM`] behind the inner
-    /// corner, face frame; depth weighted by [`OUTER_EYE_DEPTH_WEIGHT`]). Changed from the
+    /// with its squared miss of the average outer corner position (26 mm out, 1.5 mm up and
+    /// [`OUTER_EYE_DEPTH_MM`] behind the inner corner, face frame; depth weighted by
+    /// [`OUTER_EYE_DEPTH_WEIGHT`]) and its offset from the inner corner. Changed from the
     /// paper: its `S < 0.5`, `|∂/∂x| ≤ 0.5`, `∇xy < 0.25` region was empty on 1 neutral scan
     /// in 3 (the lateral canthus faces sideways by more than 14°) and its centroid was 8–12 mm
     /// off.
@@ -122,18 +123,20 @@ impl Detector<'_> {
             .filter(|r| r.len() >= OUTER_EYE_MIN_REGION_VERTICES)
             .flatten()
             .collect();
-        let rel = self.lateral_from(frame, inner, side);
+        let (miss_mm2, offset) = vertices
+            .iter()
+            .map(|&v| {
+                let p = self.p(v as usize);
+                let uv = frame.uv(p);
+                let miss = (uv - prior).length_squared()
+                    + (OUTER_EYE_DEPTH_WEIGHT * (p.z - depth_mm)).powi(2);
+                (miss, DVec2::new(side * (uv.x - q.x), uv.y - q.y))
+            })
+            .unzip();
         SideCandidates {
-            miss_mm2: vertices
-                .iter()
-                .map(|&v| {
-                    let p = self.p(v as usize);
-                    (frame.uv(p) - prior).length_squared()
-                        + (OUTER_EYE_DEPTH_WEIGHT * (p.z - depth_mm)).powi(2)
-                })
-                .collect(),
-            offset: vertices.iter().map(|&v| rel(v as usize)).collect(),
             vertices,
+            miss_mm2,
+            offset,
             prior,
         }
     }

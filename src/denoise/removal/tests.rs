@@ -1,8 +1,8 @@
 //! Tests of the removal: spike clusters, rims, step edges, repairs, fragments.
 
-use super::super::tests::grid;
 use super::*;
 use crate::Mesh;
+use crate::test_support::grid;
 
 /// A gently curved 21 × 21 patch (1 mm spacing), as a face's cheek.
 fn patch() -> (Vec<DVec3>, Topology) {
