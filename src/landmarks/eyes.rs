@@ -38,6 +38,12 @@ pub const FISSURE_MAX_MEDIAL_MM: f64 = 1.0;
 /// How much less symmetric than the most symmetric choice a pair of refined inner corners
 /// may be (mm; see `inner_eyes_at_fissures`).
 pub const FISSURE_SYMMETRY_SLACK_MM: f64 = 1.5;
+/// A corner whose side alone found its fissure end moves there, whatever the symmetry, if
+/// that end lies no more than this above its pit (mm, face frame): the pit errs into the
+/// hollow between nose bridge and eye, which lies medial of and above the canthus (on both
+/// sides alike, so a pair of such pits looks symmetric), and the correction runs laterally
+/// and down; a lone end above the pit is the upper lid's margin or crease.
+pub const FISSURE_LONE_MAX_UP_MM: f64 = 1.0;
 
 impl Detector<'_> {
     /// Step 3 for both sides: [`Self::inner_eye_candidates`] per side, the biggest region's
@@ -149,6 +155,9 @@ impl Detector<'_> {
     /// asymmetry (|u_left + u_right| + |v_left − v_right| in the face frame, mm) is within
     /// [`FISSURE_SYMMETRY_SLACK_MM`] of the least. On real scans with open eyes a trench
     /// beside the eyeball on one side only moved that corner 5–7 mm off its mirror image.
+    /// The exception: where only one side found an end and it lies at most
+    /// [`FISSURE_LONE_MAX_UP_MM`] above its pit, that side moves (the other pit is no
+    /// evidence against it: both pits err alike, into the hollows beside the nose bridge).
     pub(super) fn inner_eyes_at_fissures(
         &self,
         frame: &Frame,
@@ -157,6 +166,12 @@ impl Detector<'_> {
     ) -> (usize, usize) {
         let fr = self.inner_eye_fissure_end(frame, right, -1.0);
         let fl = self.inner_eye_fissure_end(frame, left, 1.0);
+        let up = |pit: usize, end: usize| frame.uv(self.p(end)).y - frame.uv(self.p(pit)).y;
+        match (fr != right, fl != left) {
+            (true, false) if up(right, fr) <= FISSURE_LONE_MAX_UP_MM => return (fr, left),
+            (false, true) if up(left, fl) <= FISSURE_LONE_MAX_UP_MM => return (right, fl),
+            _ => {}
+        }
         let asymmetry = |(r, l): (usize, usize)| {
             let (qr, ql) = (frame.uv(self.p(r)), frame.uv(self.p(l)));
             (qr.x + ql.x).abs() + (qr.y - ql.y).abs()
@@ -202,5 +217,71 @@ impl Detector<'_> {
         } else {
             near
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::curvature;
+    use crate::landmarks::LandmarkParams;
+    use crate::mesh::Topology;
+    use crate::test_support::grid;
+    use glam::DVec3;
+
+    /// The nose tip of the test surface (grid coordinates, mm).
+    const TIP: DVec3 = DVec3::new(50.0, 20.0, 0.0);
+
+    /// Step 3's refinement on a flat face (face frame: nose tip at [`TIP`], no roll) with
+    /// one lid fissure, a groove 2 mm deep running from 20 to 32 mm right of the midline at
+    /// height `fissure_v` (mm above the tip), and no fissure on the left. Both pits lie
+    /// 16 mm beside the midline, 33 mm up (the hollows beside the nose bridge). Returns the
+    /// refined right and left corners, face frame.
+    fn refined(fissure_v: f64) -> (DVec2, DVec2) {
+        let groove = |u: f64, v: f64| {
+            // How far beyond the groove's ends, mm.
+            let beyond = (u + 20.0).max(0.0) + (-32.0 - u).max(0.0);
+            -2.0 * (-(v - fissure_v).powi(2) / 1.28).exp() * (-beyond.powi(2)).exp()
+        };
+        let mesh = grid(101, 61, |x, y| groove(x - TIP.x, y - TIP.y));
+        let params = LandmarkParams::default();
+        let topology = Topology::new(&mesh);
+        let desc = curvature::compute_with_topology(&mesh, &topology, &params.curvature).unwrap();
+        let detector = Detector {
+            mesh: &mesh,
+            topology: &topology,
+            desc: &desc,
+            params: &params,
+            warnings: Vec::new(),
+            prior_nose: None,
+            guessed: Vec::new(),
+        };
+        let frame = Frame::new(TIP, 0.0);
+        let at = |u: f64, v: f64| ((TIP.y + v) as usize) * 101 + (TIP.x + u) as usize;
+        let (r, l) = detector.inner_eyes_at_fissures(&frame, at(-16.0, 33.0), at(16.0, 33.0));
+        (
+            frame.uv(mesh.positions_mm[r]),
+            frame.uv(mesh.positions_mm[l]),
+        )
+    }
+
+    /// A fissure end found on one side only moves that corner when it lies below its pit
+    /// (lateral and down of the hollow, where the canthus is), although the pair becomes
+    /// less symmetric; one above the pit (an upper lid's crease) does not move it.
+    #[test]
+    fn a_lone_fissure_end_below_the_pit_moves_the_corner_and_one_above_does_not() {
+        let (r, l) = refined(30.0);
+        assert!(
+            (r - DVec2::new(-20.0, 30.0)).length() <= 1.5,
+            "right corner at {r}, the fissure's medial end at (-20, 30)"
+        );
+        assert_eq!(l, DVec2::new(16.0, 33.0), "the left pit has no fissure");
+        let (r, l) = refined(36.0);
+        assert_eq!(
+            r,
+            DVec2::new(-16.0, 33.0),
+            "an end above the pit: the pit stays"
+        );
+        assert_eq!(l, DVec2::new(16.0, 33.0));
     }
 }
