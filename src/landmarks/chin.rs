@@ -109,9 +109,7 @@ impl Detector<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curvature;
-    use crate::landmarks::LandmarkParams;
-    use crate::mesh::Topology;
+    use crate::landmarks::detector::TestSurface;
     use crate::test_support::grid;
     use glam::DVec3;
 
@@ -124,22 +122,11 @@ mod tests {
         let z = |y: f64| -20.0 - slope * r * ((-80.0 - y) / r).exp().ln_1p();
         // The grid's corner (0, 0) lies 30 mm right of and 130 mm below the nose tip.
         let nose_tip = DVec3::new(30.0, 130.0, 0.0);
-        let mesh = grid(61, 91, |_, y| z(y - nose_tip.y));
-        let params = LandmarkParams::default();
-        let topology = Topology::new(&mesh);
-        let desc = curvature::compute_with_topology(&mesh, &topology, &params.curvature).unwrap();
-        let mut detector = Detector {
-            mesh: &mesh,
-            topology: &topology,
-            desc: &desc,
-            params: &params,
-            warnings: Vec::new(),
-            prior_nose: None,
-            guessed: Vec::new(),
-        };
+        let surface = TestSurface::new(grid(61, 91, |_, y| z(y - nose_tip.y)));
+        let mut detector = surface.detector();
         let v = detector.chin(&Frame::new(nose_tip, 0.0), 0.0, -50.0);
         assert!(detector.guessed.is_empty());
-        mesh.positions_mm[v].y - nose_tip.y
+        detector.p(v).y - nose_tip.y
     }
 
     /// The chin is at the bend under the chin's front, whether the underside turns back

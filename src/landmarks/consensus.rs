@@ -112,15 +112,13 @@ fn steps_in_view(
     prior_nose: DVec3,
 ) -> Result<StepPoints> {
     turned.turn(mesh, desc, view);
-    Detector {
-        mesh: &turned.mesh,
+    Detector::new(
+        &turned.mesh,
         topology,
-        desc: &turned.desc,
+        &turned.desc,
         params,
-        warnings: Vec::new(),
-        prior_nose: Some(view * prior_nose),
-        guessed: Vec::new(),
-    }
+        Some(view * prior_nose),
+    )
     .run()
 }
 

@@ -95,6 +95,27 @@ impl StepPoints {
     }
 }
 
+impl<'a> Detector<'a> {
+    /// A detection on `mesh` with its topology and descriptors, no warnings yet.
+    pub(super) fn new(
+        mesh: &'a Mesh,
+        topology: &'a Topology,
+        desc: &'a SurfaceDescriptors,
+        params: &'a LandmarkParams,
+        prior_nose: Option<DVec3>,
+    ) -> Self {
+        Detector {
+            mesh,
+            topology,
+            desc,
+            params,
+            warnings: Vec::new(),
+            prior_nose,
+            guessed: Vec::new(),
+        }
+    }
+}
+
 impl Detector<'_> {
     pub(super) fn p(&self, v: usize) -> DVec3 {
         self.mesh.positions_mm[v]
@@ -289,5 +310,36 @@ impl Detector<'_> {
                 da.total_cmp(&db)
             })
             .unwrap_or(0)
+    }
+}
+
+/// A test surface with what a [`Detector`] reads (default parameters), for unit tests of
+/// single steps.
+#[cfg(test)]
+pub(super) struct TestSurface {
+    pub(super) mesh: Mesh,
+    topology: Topology,
+    desc: SurfaceDescriptors,
+    params: LandmarkParams,
+}
+
+#[cfg(test)]
+impl TestSurface {
+    pub(super) fn new(mesh: Mesh) -> Self {
+        let params = LandmarkParams::default();
+        let topology = Topology::new(&mesh);
+        let desc =
+            crate::curvature::compute_with_topology(&mesh, &topology, &params.curvature).unwrap();
+        TestSurface {
+            mesh,
+            topology,
+            desc,
+            params,
+        }
+    }
+
+    /// A detector on the surface, without a localisation prior.
+    pub(super) fn detector(&self) -> Detector<'_> {
+        Detector::new(&self.mesh, &self.topology, &self.desc, &self.params, None)
     }
 }

@@ -223,9 +223,7 @@ impl Detector<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curvature;
-    use crate::landmarks::LandmarkParams;
-    use crate::mesh::Topology;
+    use crate::landmarks::detector::TestSurface;
     use crate::test_support::grid;
     use glam::DVec3;
 
@@ -243,26 +241,12 @@ mod tests {
             let beyond = (u + 20.0).max(0.0) + (-32.0 - u).max(0.0);
             -2.0 * (-(v - fissure_v).powi(2) / 1.28).exp() * (-beyond.powi(2)).exp()
         };
-        let mesh = grid(101, 61, |x, y| groove(x - TIP.x, y - TIP.y));
-        let params = LandmarkParams::default();
-        let topology = Topology::new(&mesh);
-        let desc = curvature::compute_with_topology(&mesh, &topology, &params.curvature).unwrap();
-        let detector = Detector {
-            mesh: &mesh,
-            topology: &topology,
-            desc: &desc,
-            params: &params,
-            warnings: Vec::new(),
-            prior_nose: None,
-            guessed: Vec::new(),
-        };
+        let surface = TestSurface::new(grid(101, 61, |x, y| groove(x - TIP.x, y - TIP.y)));
+        let detector = surface.detector();
         let frame = Frame::new(TIP, 0.0);
         let at = |u: f64, v: f64| ((TIP.y + v) as usize) * 101 + (TIP.x + u) as usize;
         let (r, l) = detector.inner_eyes_at_fissures(&frame, at(-16.0, 33.0), at(16.0, 33.0));
-        (
-            frame.uv(mesh.positions_mm[r]),
-            frame.uv(mesh.positions_mm[l]),
-        )
+        (frame.uv(detector.p(r)), frame.uv(detector.p(l)))
     }
 
     /// A fissure end found on one side only moves that corner when it lies below its pit

@@ -421,17 +421,9 @@ pub fn detect_with(
         )));
     }
     let Some(localise_params) = params.localise else {
-        let mut report = Detector {
-            mesh,
-            topology,
-            desc,
-            params,
-            warnings: Vec::new(),
-            prior_nose: None,
-            guessed: Vec::new(),
-        }
-        .run()?
-        .into_report();
+        let mut report = Detector::new(mesh, topology, desc, params, None)
+            .run()?
+            .into_report();
         report.suspect = suspect_reasons(None, &report, &localise::LocaliseParams::default());
         return Ok(report);
     };
