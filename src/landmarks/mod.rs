@@ -21,7 +21,8 @@
 //! [`LandmarkReport::localisation`] gives the orientation found; [`LandmarkReport::suspect`]
 //! the reasons not to trust the points
 //! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point, three or
-//! more failed Table 2 and level checks).
+//! more failed Table 2 and level checks or unstable points, an eye- or nose-corner pair more
+//! than [`SUSPECT_LEVEL_MM`] from level).
 //!
 //! Errors: [`detect`] fails only when there is no face to work on (no front-facing region,
 //! nothing that protrudes like a nose). A feature that is not found (e.g. an eye lost to a
@@ -190,7 +191,7 @@ pub use outer_eyes::{
     OUTER_FISSURE_FLOOR_FRACTION, OUTER_FISSURE_MAX_RISE_MM, OUTER_FISSURE_MIN_DEPTH_MM,
 };
 pub use segmentation::{ENCLOSED_ISLAND_BAND_MM, ENCLOSED_ISLAND_MIN_VERTICES, FACE_MIN_DZ};
-pub use suspect::{PROFILE_MIN_YAW_DEG, SUSPECT_FAILED_CHECKS, suspect_reasons};
+pub use suspect::{PROFILE_MIN_YAW_DEG, SUSPECT_FAILED_CHECKS, SUSPECT_LEVEL_MM, suspect_reasons};
 pub use table2::{
     Direction, DistanceStat, INSIDE_EYE_TO_OUTSIDE_EYE, LEVEL_MAX_MM, NOSE_TIP_TO_CHIN,
     NOSE_TIP_TO_INSIDE_EYE, NOSE_TIP_TO_MOUTH, NOSE_TIP_TO_NOSE_BRIDGE, PairDistance, PairLevel,
