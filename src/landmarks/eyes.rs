@@ -166,7 +166,7 @@ impl Detector<'_> {
     ) -> (usize, usize) {
         let fr = self.inner_eye_fissure_end(frame, right, -1.0);
         let fl = self.inner_eye_fissure_end(frame, left, 1.0);
-        let up = |pit: usize, end: usize| frame.uv(self.p(end)).y - frame.uv(self.p(pit)).y;
+        let up = |pit: usize, end: usize| self.lateral_from(frame, pit, 1.0)(end).y;
         match (fr != right, fl != left) {
             (true, false) if up(right, fr) <= FISSURE_LONE_MAX_UP_MM => return (fr, left),
             (false, true) if up(left, fl) <= FISSURE_LONE_MAX_UP_MM => return (right, fl),
