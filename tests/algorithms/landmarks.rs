@@ -291,21 +291,32 @@ fn real_gavabdb_frontal_scan_gives_an_anatomically_ordered_face() {
 
 #[test]
 fn real_scans_with_one_eye_corner_off_are_flagged_by_the_level_check() {
-    // Seen in zoomed eye pictures: cara2_frontal2's right inner corner sits ~5 mm below the
-    // lid fissure. No other concave region gives a level pair, so detection keeps it; the level
-    // check flags the pair (Table 2 does not: both are within its ranges).
+    // Seen in zoomed eye pictures beside the independent detector's points: cara2_frontal2's
+    // left eye corners both sit on the upper lid, ~9 mm above the lid fissure, the right ones
+    // ~3 mm. No other concave region gives a level pair, so detection keeps them; the level
+    // check flags an eye pair (Table 2 does not: all are within its ranges). Which pair shows
+    // it depends on the roll: the inner pair differs by 4.96–5.2 mm in height, the outer pair
+    // by 6.5–7.4 mm.
     let name = "pointclouds/cara2_frontal2.txt";
     let r = landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
-    let inner = r.level.iter().find(|l| l.name == "inner_eye").unwrap();
+    let flagged: Vec<_> = r
+        .level
+        .iter()
+        .filter(|l| l.name.ends_with("eye") && !l.in_range)
+        .collect();
     assert!(
-        !inner.in_range && inner.difference_mm > landmarks::LEVEL_MAX_MM,
-        "{name}: inner corners {:.1} mm apart in height",
-        inner.difference_mm
+        flagged
+            .iter()
+            .all(|l| l.difference_mm.abs() > landmarks::LEVEL_MAX_MM)
+            && !flagged.is_empty(),
+        "{name}: eye pairs level: {:?}",
+        r.level
     );
     assert!(
-        r.warnings
+        flagged.iter().all(|l| r
+            .warnings
             .iter()
-            .any(|w| w.starts_with("inner_eye_left/inner_eye_right")),
+            .any(|w| w.starts_with(&format!("{}_left/{}_right", l.name, l.name)))),
         "{name}: {:?}",
         r.warnings
     );
