@@ -1,16 +1,16 @@
 //! Our addition: the nine steps' consensus over small changes of view.
 //!
-//! The steps read depth, front-facing normals and depth jumps along the line of sight, and
-//! that is an estimate (the mean vertex normal, see `steps_frame`): on generated scans it lies
-//! 2–6° off the scanner's axis. Several steps choose among near-equal regions (the biggest
-//! concave region, the one nearest a typical offset), and such a change of view can flip the
-//! choice and move a point by 5–15 mm. So the steps run in the estimated view and in views
-//! tilted by ±[`CONSENSUS_TILT_DEG`] about its x and y axes. Each point is the untilted run's,
-//! unless that lies more than [`CONSENSUS_KEEP_MM`] from the **medoid** of where the runs put
-//! it (the run's point with the least summed distance to the other runs' points; the earlier
-//! run wins ties): then the medoid. A point the untilted run had to guess is taken from a
-//! tilted run that found it. The runs' **spread** per point (the largest distance from
-//! the chosen point to another run's) is reported: a point they put far apart is unstable.
+//! The steps read depth, front-facing normals and depth jumps along the line of sight, and that is
+//! an estimate (the mean vertex normal of the located face, see `steps_frame`; of the whole scan,
+//! it lay 2–6° off the scanner's axis on generated scans). Several steps choose among near-equal
+//! regions (the biggest concave region, the one nearest a typical offset), and such a change of
+//! view can flip the choice and move a point by 5–15 mm. So the steps run in the estimated view and
+//! in views tilted by ±[`CONSENSUS_TILT_DEG`] about its x and y axes. Each point is the untilted
+//! run's, unless that lies more than [`CONSENSUS_KEEP_MM`] from the **medoid** of where the runs
+//! put it (the run's point with the least summed distance to the other runs' points; the earlier
+//! run wins ties): then the medoid. A point the untilted run had to guess is taken from a tilted
+//! run that found it. The runs' **spread** per point (the largest distance from the chosen point to
+//! another run's) is reported: a point they put far apart is unstable.
 
 use super::LandmarkParams;
 use super::detector::{Detector, StepPoints, fallback_warning};

@@ -116,6 +116,30 @@ pub struct Localisation {
     pub candidates_fitted: usize,
 }
 
+impl Localisation {
+    /// How much the scan point `p` (scan frame, mm) belongs to the face found, 0–1, by its
+    /// distance from the fitted nose tip: 1 within the generic face's radius about its nose tip
+    /// (127 mm, scaled to this face) less [`COVER_TAPER_MM`], falling linearly to 0 at that
+    /// radius. A torso, shoulders or a hair cap beyond it get 0. Only the nose tip of the fit
+    /// counts, not its turn, and the fall is gradual, so that the weighted sums this feeds
+    /// follow a rotation of the data (measured: weighting by the generic face's extent in its
+    /// own plane, which turns with the fit, moved a rotated copy's points up to 7.6 mm).
+    pub fn coverage(&self, p: DVec3) -> f64 {
+        static RADIUS_MM: OnceLock<f64> = OnceLock::new();
+        let radius = *RADIUS_MM.get_or_init(|| {
+            template(1, false)
+                .iter()
+                .map(|(p, _)| p.length())
+                .fold(0.0, f64::max)
+        });
+        let d = (p - self.nose_tip_in_scan).length() / self.scale;
+        ((radius - d) / COVER_TAPER_MM).clamp(0.0, 1.0)
+    }
+}
+
+/// The width of [`Localisation::coverage`]'s fall to the generic face's radius, mm.
+pub const COVER_TAPER_MM: f64 = 20.0;
+
 /// Template points with their unit normals (generic face frame: nose tip at the origin, looking
 /// +z, y up), mm: every `step`-th generic vertex, above [`TEMPLATE_MIN_Y_MM`] only where `upper`.
 fn template(step: usize, upper: bool) -> Vec<(DVec3, DVec3)> {

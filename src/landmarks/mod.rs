@@ -6,18 +6,18 @@
 //! [`crate::denoise`]): without it, spikes and noise break up the concave regions the steps
 //! look for. The paper's steps assume a frontal face in the scanner frame (face towards +z,
 //! y up, the subject's left at +x) and take the biggest front-facing region as the face.
-//! Before them, **face localisation** ([`localise`], our addition) finds the face among
-//! candidates (protrusion peaks in the scanner frame, then tilted and axis-permuted frames)
-//! by the rigid fit of the generic face and its **face-likeness** (the fraction of the generic
-//! face within 4 mm of the scan after the fit). The steps then run on the scan turned so that
-//! z is the scanner's line of sight (the mean vertex normal) and y the located face's up, with
-//! step 1 kept to an ellipse about the located nose and step 2 to 30 mm of it; the points are
-//! turned back, so they are in the input's frame. Where localisation's finalists rank within
+//! Before them, **face localisation** ([`localise`], our addition) finds the face among candidates
+//! (protrusion peaks in the scanner frame, then tilted and axis-permuted frames) by the rigid fit
+//! of the generic face and its **face-likeness** (the fraction of the generic face within 4 mm of
+//! the scan after the fit). The steps then run on the scan turned so that z is the scanner's line
+//! of sight (the mean vertex normal of the located face) and y the located face's up, with step 1
+//! kept to an ellipse about the located nose and step 2 to 30 mm of it; the points are turned back,
+//! so they are in the input's frame. Where localisation's finalists rank within
 //! [`PLAUSIBILITY_TIE`] of each other, each gets the steps and the anatomically most plausible
-//! result wins ([`implausibility`]). The steps run in that view and in four views tilted by
-//! ±5° (`consensus.rs`): a point that the untilted view puts more than
-//! [`CONSENSUS_KEEP_MM`] from the medoid of the five is replaced by it, and the views' spread
-//! per point ([`LandmarkReport::spread_mm`]) names the unstable ones.
+//! result wins ([`implausibility`]). The steps run in that view and in four views tilted by ±5°
+//! (`consensus.rs`): a point that the untilted view puts more than [`CONSENSUS_KEEP_MM`] from the
+//! medoid of the five is replaced by it, and the views' spread per point
+//! ([`LandmarkReport::spread_mm`]) names the unstable ones.
 //! [`LandmarkReport::localisation`] gives the orientation found; [`LandmarkReport::suspect`]
 //! the reasons not to trust the points
 //! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point, three or
@@ -139,13 +139,13 @@
 //!
 //! # Accuracy and speed
 //!
-//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 37–40 of
-//! 40 neutral scans have all scored points within 10 mm (thirteen seeds; 40 on the one made after
-//! the last change). Real scans in `../shared/data`: 28 of 34 agree within 12 mm with an
-//! independent detector (`scripts/real_landmarks.sh`; of the six others, five are flagged
-//! suspect: the two profiles, cara46_frontal1, cara9_frontal2 and pol_003-001). Denoise + detection, release
-//! build on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1).
-//! Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
+//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 37–40 of 40
+//! neutral scans have all scored points within 10 mm (fifteen seeds; 40 on the two made after the
+//! last change). Real scans in `../shared/data`: 28 of 34 agree within 12 mm with an independent
+//! detector (`scripts/real_landmarks.sh`; of the six others, five are flagged suspect: the two
+//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001). Denoise + detection, release build
+//! on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1). Figures, how to
+//! reproduce them, and what was tried: `docs/measurements.md`.
 
 pub mod eval;
 pub mod localise;
@@ -447,7 +447,7 @@ pub fn detect_with(
         mesh,
         topology,
         desc,
-        normal_sum: mesh.normals.iter().copied().sum(),
+        normal_sum: face_normal_sum(mesh, &finalists[0].0),
     };
     let mut turned = consensus::Turned::new(mesh, desc);
     let mut best: Option<(usize, LandmarkReport)> = None;
@@ -485,13 +485,31 @@ pub fn implausibility(report: &LandmarkReport) -> usize {
         + report.unstable_points().len()
 }
 
-/// The scan as the steps see it, with the sum of its vertex normals (the line of sight,
-/// [`steps_frame`]), computed once for all finalists.
+/// The scan as the steps see it, with its line of sight's estimate, computed once for all
+/// finalists.
 struct Scan<'a> {
     mesh: &'a Mesh,
     topology: &'a Topology,
     desc: &'a SurfaceDescriptors,
+    /// [`face_normal_sum`] about the best-ranked finalist ([`steps_frame`]).
     normal_sum: glam::DVec3,
+}
+
+/// The sum of the vertex normals of the surface about the face `found`, weighted by
+/// [`localise::Localisation::coverage`]: the line of sight's estimate ([`steps_frame`]). Only
+/// the face counts: a torso, shoulders, a wall or anything else in the file would otherwise
+/// turn the view the steps read depth along (measured: a flat patch 1 m beside cara1_abajo
+/// moved its inner eye corner 5.7 mm; turned 45°, 133 mm). It is taken about the best-ranked
+/// finalist and serves every finalist: about each finalist's own face, a face located on the
+/// chin and pitched 33° came with a view that agreed with it and won (generated risa scans,
+/// 65 mm off); over all finalists together, the estimate followed which finalists tied, and a
+/// rotated copy's forehead moved 6.6 mm.
+fn face_normal_sum(mesh: &Mesh, found: &localise::Localisation) -> glam::DVec3 {
+    mesh.positions_mm
+        .iter()
+        .zip(&mesh.normals)
+        .map(|(p, n)| *n * found.coverage(*p))
+        .sum()
 }
 
 /// The nine steps (their consensus of views) on the face `found` by localisation, the points
@@ -532,8 +550,9 @@ fn steps_for(
 }
 
 /// The frame the nine steps run in (rotation from the scan): z along the line of sight, estimated
-/// as the mean vertex normal (`normal_sum`: a single-view range scan's surface faces its
-/// scanner, its normals spread about the line of sight), turned to the side the located face
+/// as the mean vertex normal of the face (`normal_sum`, [`face_normal_sum`]: a
+/// single-view range scan's surface faces its scanner, its normals spread about the line of
+/// sight), turned to the side the located face
 /// looks to; y the located face's up, made perpendicular to it. Both follow any rotation of the
 /// data, so the steps see the same thing however the file's axes lie.
 fn steps_frame(normal_sum: glam::DVec3, located: glam::DMat3) -> glam::DMat3 {
@@ -554,7 +573,7 @@ fn steps_frame(normal_sum: glam::DVec3, located: glam::DMat3) -> glam::DMat3 {
 }
 
 /// The head's turn (degrees) against the line of sight, whatever the file's axes: the angle,
-/// about the located face's up axis, from the scan's mean vertex normal (`normal_sum`; a
+/// about the located face's up axis, from the face's mean vertex normal (`normal_sum`; a
 /// single-view scan faces its scanner) to the located face's direction. 0 for a closed mesh (no
 /// line of sight).
 fn yaw_from_line_of_sight(normal_sum: glam::DVec3, located: glam::DMat3) -> f64 {
