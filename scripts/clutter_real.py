@@ -14,6 +14,9 @@ points. Prints, per scan and clutter, how far the ten anatomical points moved (m
 whether the detection is suspect; the summary counts copies whose points all stay within 2 mm.
 
     python3 scripts/clutter_real.py OUT [FACESYNTH]
+
+FS_EXTRA (environment) adds arguments to every `facesynth landmarks` call, e.g.
+FS_EXTRA=--no-denoise.
 """
 import glob
 import json
