@@ -44,9 +44,10 @@ def patch(xs, ys, step, z):
 
 
 def with_patch(obj_in, obj_out, verts, quads):
-    n = sum(1 for line in open(obj_in) if line.startswith("v "))
+    text = open(obj_in).read()
+    n = sum(1 for line in text.splitlines() if line.startswith("v "))
     with open(obj_out + ".tmp", "w") as f:
-        f.write(open(obj_in).read())
+        f.write(text)
         for x, y, z in verts:
             f.write(f"v {x:.3f} {y:.3f} {z:.3f}\n")
         for a, b, c, d in quads:
@@ -102,12 +103,8 @@ def main():
             if got is None:
                 row.append(f"{name}: failed ({err})")
                 continue
-            moved = max(
-                sum((a - b) ** 2 for a, b in zip(got["landmarks"][p], lm[p])) ** 0.5
-                for p in ANATOMICAL
-            )
-            worst = max(ANATOMICAL, key=lambda p: sum(
-                (a - b) ** 2 for a, b in zip(got["landmarks"][p], lm[p])))
+            moved, worst = max(((math.dist(got["landmarks"][p], lm[p]), p) for p in ANATOMICAL),
+                               key=lambda t: t[0])
             kept += moved <= 2.0
             flag = " suspect" if got["suspect"] else ""
             row.append(f"{name}: {moved:5.1f} mm ({worst}){flag}")

@@ -203,29 +203,36 @@ impl Detector<'_> {
 
     /// Connected regions of the vertices where `mask` holds.
     pub(super) fn regions(&self, mask: &[bool]) -> Vec<Vec<u32>> {
-        let n = mask.len();
-        let mut seen = vec![false; n];
+        let mut seen = vec![false; mask.len()];
         let mut out = Vec::new();
-        let mut stack = Vec::new();
-        for s in 0..n {
-            if !mask[s] || seen[s] {
-                continue;
+        for s in 0..mask.len() {
+            if mask[s] && !seen[s] {
+                out.push(self.grow(s, mask, &mut seen));
             }
-            let mut region = Vec::new();
-            seen[s] = true;
-            stack.push(s as u32);
-            while let Some(v) = stack.pop() {
-                region.push(v);
-                for &u in self.topology.neighbours(v as usize) {
-                    if mask[u as usize] && !seen[u as usize] {
-                        seen[u as usize] = true;
-                        stack.push(u);
-                    }
-                }
-            }
-            out.push(region);
         }
         out
+    }
+
+    /// The connected region of `mask` that holds `seed` (`mask[seed]` must hold).
+    pub(super) fn region_of(&self, seed: usize, mask: &[bool]) -> Vec<u32> {
+        self.grow(seed, mask, &mut vec![false; mask.len()])
+    }
+
+    /// The vertices of `mask` that mesh edges through `mask` reach from `seed`, marked in `seen`.
+    fn grow(&self, seed: usize, mask: &[bool], seen: &mut [bool]) -> Vec<u32> {
+        let mut region = Vec::new();
+        seen[seed] = true;
+        let mut stack = vec![seed as u32];
+        while let Some(v) = stack.pop() {
+            region.push(v);
+            for &u in self.topology.neighbours(v as usize) {
+                if mask[u as usize] && !seen[u as usize] {
+                    seen[u as usize] = true;
+                    stack.push(u);
+                }
+            }
+        }
+        region
     }
 
     /// The largest region of `mask`, if any.
@@ -245,10 +252,18 @@ impl Detector<'_> {
             .collect()
     }
 
+    /// The mean position of a (non-empty) region's vertices, mm.
+    pub(super) fn centroid(&self, region: &[u32]) -> DVec3 {
+        region.iter().map(|&v| self.p(v as usize)).sum::<DVec3>() / region.len() as f64
+    }
+
     /// The region vertex nearest the region's centroid.
     pub(super) fn centroid_vertex(&self, region: &[u32]) -> usize {
-        let c = region.iter().map(|&v| self.p(v as usize)).sum::<DVec3>() / region.len() as f64;
-        nearest(self.mesh, region.iter().map(|&v| v as usize), c)
+        nearest(
+            self.mesh,
+            region.iter().map(|&v| v as usize),
+            self.centroid(region),
+        )
     }
 
     /// The region vertex maximising `f(position)`.

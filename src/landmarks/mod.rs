@@ -550,11 +550,10 @@ fn steps_for(
 }
 
 /// The frame the nine steps run in (rotation from the scan): z along the line of sight, estimated
-/// as the mean vertex normal of the face (`normal_sum`, [`face_normal_sum`]: a
-/// single-view range scan's surface faces its scanner, its normals spread about the line of
-/// sight), turned to the side the located face
-/// looks to; y the located face's up, made perpendicular to it. Both follow any rotation of the
-/// data, so the steps see the same thing however the file's axes lie.
+/// as the mean vertex normal of the face (`normal_sum`, [`face_normal_sum`]: a single-view range
+/// scan's surface faces its scanner, its normals spread about the line of sight), turned to the
+/// side the located face looks to; y the located face's up, made perpendicular to it. Both
+/// follow any rotation of the data, so the steps see the same thing however the file's axes lie.
 fn steps_frame(normal_sum: glam::DVec3, located: glam::DMat3) -> glam::DMat3 {
     let face_z = located.transpose().z_axis;
     let face_y = located.transpose().y_axis;

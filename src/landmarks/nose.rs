@@ -105,13 +105,8 @@ impl Detector<'_> {
                 && (self.p(v) - t).length() < NOSE_TIP_REACH_MM;
         }
         mask[top] = true;
-        let region = self
-            .regions(&mask)
-            .into_iter()
-            .find(|r| r.contains(&(top as u32)))
-            .unwrap_or_else(|| vec![top as u32]);
-        let tip = region.iter().map(|&v| self.p(v as usize)).sum::<DVec3>() / region.len() as f64;
-        Ok((tip, self.centroid_vertex(&region)))
+        let region = self.region_of(top, &mask);
+        Ok((self.centroid(&region), self.centroid_vertex(&region)))
     }
 }
 
