@@ -332,6 +332,14 @@ impl LandmarkReport {
             .collect()
     }
 
+    /// How far the detected nose tip lies from the nose tip of `found`'s fit of the generic
+    /// face across the fitted face (in its plane; along its direction the two differ by how
+    /// far this nose protrudes beyond the generic one's), mm.
+    pub fn fit_nose_tip_offset_mm(&self, found: &localise::Localisation) -> f64 {
+        let d = self.landmarks.get(FeaturePoint::NoseTip) - found.nose_tip_in_scan;
+        (found.face_from_scan * d).truncate().length()
+    }
+
     /// The CLI's JSON: `{"landmarks": {name: [x,y,z]}, "distances_mm": {...}, "warnings": [...]}`
     /// (the CLI adds `millis`).
     pub fn to_json(&self) -> serde_json::Value {
@@ -388,6 +396,7 @@ impl LandmarkReport {
                     "yaw_deg": round3(yaw), "pitch_deg": round3(pitch), "roll_deg": round3(roll),
                     "face_from_scan": m.map(|r| r.map(|x| (x * 1e6).round() / 1e6)),
                     "nose_tip_fit_mm": l.nose_tip_in_scan.to_array().map(round3),
+                    "nose_tip_fit_offset_mm": round3(self.fit_nose_tip_offset_mm(&l)),
                     "fit_rms_mm": round3(l.rms_mm),
                     "size_vs_generic_face": round3(l.scale),
                     "candidates_fitted": l.candidates_fitted,
@@ -543,6 +552,15 @@ fn steps_for(
             .landmarks
             .set(p, scan_from_face * report.landmarks.get(p));
     }
+    let off_mm = report.fit_nose_tip_offset_mm(&found);
+    if off_mm > FIT_NOSE_TIP_WARN_MM {
+        report.warnings.push(format!(
+            "face localisation: the generic face's fit puts the nose tip {off_mm:.1} mm from the \
+             detected one (more than {FIT_NOSE_TIP_WARN_MM} mm): it lies on another part of the \
+             face, so the orientation figures and the line of sight the steps read depth along \
+             come from a misplaced fit; check the picture"
+        ));
+    }
     let yaw_deg = yaw_from_line_of_sight(scan.normal_sum, found.face_from_scan);
     report.suspect = suspect_reasons(Some((&found, yaw_deg)), &report, localise_params);
     report.localisation = Some(found);
@@ -590,6 +608,14 @@ fn yaw_from_line_of_sight(normal_sum: glam::DVec3, located: glam::DMat3) -> f64 
     let across = up.cross(sight);
     facing.dot(across).atan2(facing.dot(sight)).to_degrees()
 }
+
+/// A detected nose tip further than this (mm, across the face) from the nose tip of the generic
+/// face's fit that located the face gets a warning: the fit then lies on another part of the face (seen on a
+/// real scan: slid 25.6 mm down onto the upper lip, its pitch and roll off by degrees, while the
+/// steps found the right points), and the orientation figures and the line of sight are that
+/// fit's. The same distance as the line of sight's taper ([`localise::COVER_TAPER_MM`]): a
+/// fit off by more has the face's own normals weighted as if they were its border.
+pub const FIT_NOSE_TIP_WARN_MM: f64 = localise::COVER_TAPER_MM;
 
 /// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have
 /// 10,000 or more; a face at 2 mm spacing ~3,000).
