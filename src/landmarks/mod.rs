@@ -21,8 +21,8 @@
 //! [`LandmarkReport::localisation`] gives the orientation found; [`LandmarkReport::suspect`]
 //! the reasons not to trust the points
 //! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point, three or
-//! more failed Table 2 and level checks or unstable points, an eye- or nose-corner pair more
-//! than [`SUSPECT_LEVEL_MM`] from level).
+//! more failed Table 2 and level checks or unstable points, an eye, nose or mouth corner pair
+//! more than [`SUSPECT_LEVEL_MM`] from level).
 //!
 //! Errors: [`detect`] fails only when there is no face to work on (no front-facing region,
 //! nothing that protrudes like a nose). A feature that is not found (e.g. an eye lost to a

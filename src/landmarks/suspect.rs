@@ -1,7 +1,6 @@
 //! Why a detection should not be trusted: the reasons [`LandmarkReport::suspect`] lists.
 
 use super::{CONSENSUS_TILT_DEG, LEVEL_MAX_MM, LandmarkReport, UNSTABLE_SPREAD_MM, localise};
-use crate::feature_points::FeaturePoint;
 
 /// A head turned further than this from frontal (yaw, degrees) is a profile: half the face is
 /// hidden and the nine steps, built for frontal faces, place points on what is left.
@@ -15,11 +14,12 @@ pub const PROFILE_MIN_YAW_DEG: f64 = 35.0;
 /// or the points are probably wrong (figures: docs/measurements.md).
 pub const SUSPECT_FAILED_CHECKS: usize = 3;
 
-/// A left/right pair of the face's rigid part (eye corners, nose corners) whose heights differ
-/// by more than this (mm, twice [`LEVEL_MAX_MM`]) makes a detection suspect on its own: the
-/// face frame's roll is the symmetry line's, true pairs differ by at most 3.1 mm, and no
-/// expression lifts one of these points so far. Mouth corners are left to the count above (a
-/// one-sided smile lifts one; on the benchmark's gestures by up to 7.2 mm).
+/// A left/right pair (eye, nose or mouth corners) whose heights differ by more than this (mm,
+/// twice [`LEVEL_MAX_MM`]) makes a detection suspect on its own: the face frame's roll is the
+/// symmetry line's, and true eye and nose corner pairs differ by at most 3.1 mm. A smile lifts
+/// a mouth corner about 7 mm (the mouth widens by about 27 % and its corners move up and out
+/// at about 47°, Am J Orthod Dentofacial Orthop 2005;128:8–15), so a one-sided smile leaves
+/// the pair less than this apart (on the benchmark's gestures at most 7.2 mm).
 pub const SUSPECT_LEVEL_MM: f64 = 2.0 * LEVEL_MAX_MM;
 
 /// Why a detection is suspect (empty: it is not), from the localisation and the head's yaw
@@ -28,8 +28,8 @@ pub const SUSPECT_LEVEL_MM: f64 = 2.0 * LEVEL_MAX_MM;
 /// head is turned into a profile ([`PROFILE_MIN_YAW_DEG`]), one of the nine anatomical points
 /// (all but cheeks and forehead, which are region borders) had to be guessed at its Table 2
 /// average position, [`SUSPECT_FAILED_CHECKS`] or more of `report`'s Table 2 and level
-/// checks fail or its anatomical points are unstable, or a rigid pair's heights differ by
-/// more than [`SUSPECT_LEVEL_MM`].
+/// checks fail or its anatomical points are unstable, or a left/right pair's heights differ
+/// by more than [`SUSPECT_LEVEL_MM`].
 pub fn suspect_reasons(
     localisation: Option<(&localise::Localisation, f64)>,
     report: &LandmarkReport,
@@ -89,7 +89,6 @@ pub fn suspect_reasons(
         ));
     }
     let skewed: Vec<String> = (report.level.iter())
-        .filter(|l| l.left != FeaturePoint::MouthCornerLeft)
         .filter(|l| l.difference_mm.abs() > SUSPECT_LEVEL_MM)
         .map(|l| format!("{} {:.1} mm", l.name, l.difference_mm.abs()))
         .collect();
