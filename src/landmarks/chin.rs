@@ -36,6 +36,12 @@ pub const CHIN_AT_LIMIT_MM: f64 = 5.0;
 /// point of a line atan(1/2) = 27° back from vertical, on the bend between the chin's front
 /// (vertical) and an underside sloping back less than 45°.
 pub const CHIN_SHALLOW_FORWARD_WEIGHT: f64 = 2.0;
+/// Our step 9: the chin lies at least this far below the mouth line, mm: below the lower lip,
+/// whose height (stomion to the labiomental fold, sto–sl) is 20.7 ± 1.1 mm in women and
+/// 22.5 ± 1.9 mm in men (J Korean Assoc Maxillofac Plast Reconstr Surg 2019, 41:9, table 9;
+/// the chin's lowest point, menton, 52–56 mm). A reached vertex higher up is the lower lip,
+/// which a puckered or pushed-out mouth brings as far forward as the chin is low.
+pub const CHIN_MIN_BELOW_MOUTH_MM: f64 = 20.0;
 /// Our step 9: the chin walk passes vertices whose mesh normal has `n_z >` this.
 pub const CHIN_WALK_MIN_NZ: f64 = 0.5;
 
@@ -44,7 +50,8 @@ impl Detector<'_> {
     /// mouth corners; seeds: every strip vertex 12–32 mm below the mouth line), along mesh
     /// edges, through vertices whose **mesh** normal faces the scanner
     /// (`n_z > 0.5`); the chin is the reached vertex furthest down-and-forward
-    /// ([`CHIN_FORWARD_WEIGHT`]), less half its distance from the strip's centre line; where
+    /// ([`CHIN_FORWARD_WEIGHT`]) of those at least [`CHIN_MIN_BELOW_MOUTH_MM`] below the mouth
+    /// line (none: not found), less half its distance from the strip's centre line; where
     /// that is within [`CHIN_AT_LIMIT_MM`] of the walk's lowest line, the vertex furthest
     /// along [`CHIN_SHALLOW_FORWARD_WEIGHT`] instead. The scan's chin–neck depth jump, or the
     /// underside turning away, ends the walk. Changed from the paper (the lowest point of the
@@ -88,11 +95,14 @@ impl Detector<'_> {
             })
         };
         let at_limit = |v: usize| frame.uv(self.p(v)).y < lowest + CHIN_AT_LIMIT_MM;
-        let chin = self.strip_walk(&key, band).map(|reached| {
-            match furthest(&reached, CHIN_FORWARD_WEIGHT) {
-                v if at_limit(v) => furthest(&reached, CHIN_SHALLOW_FORWARD_WEIGHT),
-                v => v,
-            }
+        // The reached vertices below the lower lip ([`CHIN_MIN_BELOW_MOUTH_MM`]).
+        let below_lip = |v: &usize| frame.uv(self.p(*v)).y <= mouth_v - CHIN_MIN_BELOW_MOUTH_MM;
+        let reached = (self.strip_walk(&key, band))
+            .map(|r| r.into_iter().filter(below_lip).collect::<Vec<_>>())
+            .filter(|r| !r.is_empty());
+        let chin = reached.map(|reached| match furthest(&reached, CHIN_FORWARD_WEIGHT) {
+            v if at_limit(v) => furthest(&reached, CHIN_SHALLOW_FORWARD_WEIGHT),
+            v => v,
         });
         match chin {
             Some(v) => v,
@@ -113,13 +123,18 @@ mod tests {
     use crate::test_support::grid;
     use glam::DVec3;
 
-    /// The chin of a profile surface (face frame: nose tip at the origin, y up, facing +z):
-    /// the chin's front at z = −20 mm down to y = −80 mm, then a 3 mm-wide bend into an
-    /// underside receding `degrees` from vertical; 60 mm wide, from y = −40 to −130 mm.
-    fn chin_of_profile(degrees: f64) -> f64 {
+    /// The chin of a profile surface (face frame: nose tip at the origin, y up, facing +z; the
+    /// mouth line at y = −50 mm): the chin's front at z = −20 mm down to y = −80 mm, then a
+    /// 3 mm-wide bend into an underside receding `degrees` from vertical, and a lower lip
+    /// pushed `lip_mm` forward of the chin's front 12 mm below the mouth line (a Gaussian
+    /// ridge, σ 4 mm); 60 mm wide, from y = −40 to −130 mm.
+    fn chin_of_profile(degrees: f64, lip_mm: f64) -> f64 {
         let r = 3.0;
         let slope = degrees.to_radians().tan();
-        let z = |y: f64| -20.0 - slope * r * ((-80.0 - y) / r).exp().ln_1p();
+        let z = |y: f64| {
+            -20.0 - slope * r * ((-80.0 - y) / r).exp().ln_1p()
+                + lip_mm * (-(y + 62.0).powi(2) / 32.0).exp()
+        };
         // The grid's corner (0, 0) lies 30 mm right of and 130 mm below the nose tip.
         let nose_tip = DVec3::new(30.0, 130.0, 0.0);
         let surface = TestSurface::new(grid(61, 91, |_, y| z(y - nose_tip.y)));
@@ -135,11 +150,23 @@ mod tests {
     #[test]
     fn the_chin_is_the_bend_whether_or_not_the_underside_turns_back_more_than_45_degrees() {
         for degrees in [55.0, 35.0] {
-            let y = chin_of_profile(degrees);
+            let y = chin_of_profile(degrees, 0.0);
             assert!(
                 (y + 80.0).abs() <= 4.0,
                 "underside at {degrees}°: chin at y = {y:.1} mm, the bend at −80"
             );
         }
+    }
+
+    /// A lower lip pushed 25 mm forward (a pucker) is further down-and-forward than the
+    /// chin's bend (62 + 5 against 80 − 20 mm), but lies 12 mm below the mouth line, on the
+    /// lip: the chin stays at the bend (without [`CHIN_MIN_BELOW_MOUTH_MM`] it went to the lip).
+    #[test]
+    fn a_lower_lip_pushed_forward_is_not_the_chin() {
+        let y = chin_of_profile(55.0, 25.0);
+        assert!(
+            (y + 80.0).abs() <= 4.0,
+            "chin at y = {y:.1} mm, the bend at −80"
+        );
     }
 }

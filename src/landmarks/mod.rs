@@ -132,7 +132,8 @@
 //!    front of the chin, ~10 mm above the jaw-contour chin point (iBUG 8). Here: walk down a
 //!    midline strip from the mouth along mesh edges through vertices whose mesh normal faces
 //!    the scanner; the chin is the vertex reached furthest down-and-forward, the tangent
-//!    point of a 45° line (the chin–neck depth jump stops the walk). Where that lies at the
+//!    point of a 45° line (the chin–neck depth jump stops the walk), at least a lower lip's
+//!    height below the mouth line ([`CHIN_MIN_BELOW_MOUTH_MM`]). Where that lies at the
 //!    walk's lowest line ([`CHIN_AT_LIMIT_MM`]), the underside never turned back 45° (a chin
 //!    running into the neck) and the tangent point of a steeper line
 //!    ([`CHIN_SHALLOW_FORWARD_WEIGHT`]) is taken.
@@ -170,7 +171,7 @@ mod table2;
 
 pub use cheeks::{CHEEK_MAX_DZ, CHEEK_STRIP_GAP_MM, CHEEK_STRIP_HALF_MM};
 pub use chin::{
-    CHIN_AT_LIMIT_MM, CHIN_FORWARD_WEIGHT, CHIN_MAX_GRAD_XY, CHIN_MIN_S,
+    CHIN_AT_LIMIT_MM, CHIN_FORWARD_WEIGHT, CHIN_MAX_GRAD_XY, CHIN_MIN_BELOW_MOUTH_MM, CHIN_MIN_S,
     CHIN_SHALLOW_FORWARD_WEIGHT, CHIN_WALK_MARGIN_MM, CHIN_WALK_MIN_NZ, CHIN_WALK_SEED_BAND_MM,
     CHIN_WALK_START_BELOW_MOUTH_MM,
 };
