@@ -610,12 +610,12 @@ fn yaw_from_line_of_sight(normal_sum: glam::DVec3, located: glam::DMat3) -> f64 
     facing.dot(across).atan2(facing.dot(sight)).to_degrees()
 }
 
-/// A detected nose tip further than this (mm, across the face) from the nose tip of the generic
-/// face's fit that located the face gets a warning: the fit then lies on another part of the face (seen on a
-/// real scan: slid 25.6 mm down onto the upper lip, its pitch and roll off by degrees, while the
-/// steps found the right points), and the orientation figures and the line of sight are that
-/// fit's. The same distance as the line of sight's taper ([`localise::COVER_TAPER_MM`]): a
-/// fit off by more has the face's own normals weighted as if they were its border.
+/// A detected nose tip further than this (mm, across the face) from the nose tip of the
+/// generic face's fit that located the face gets a warning: the fit lies on another part of the
+/// face (the steps may still find the right points), and the orientation figures and the line
+/// of sight are that fit's (docs/measurements.md, stop 50). The line of sight's taper
+/// ([`localise::COVER_TAPER_MM`]): a fit off by more weights the face's own normals as if they
+/// were its border.
 pub const FIT_NOSE_TIP_WARN_MM: f64 = localise::COVER_TAPER_MM;
 
 /// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have
