@@ -558,8 +558,8 @@ fn steps_for(
         report.warnings.push(format!(
             "face localisation: the generic face's fit puts the nose tip {off_mm:.1} mm from the \
              detected one (more than {FIT_NOSE_TIP_WARN_MM} mm): it lies on another part of the \
-             face, so the orientation figures and the line of sight the steps read depth along \
-             come from a misplaced fit; check the picture"
+             face, so the orientation figures (yaw, pitch, roll) are a misplaced fit's; check \
+             the picture"
         ));
     }
     let yaw_deg = yaw_from_line_of_sight(scan.normal_sum, found.face_from_scan);
@@ -612,10 +612,10 @@ fn yaw_from_line_of_sight(normal_sum: glam::DVec3, located: glam::DMat3) -> f64 
 
 /// A detected nose tip further than this (mm, across the face) from the nose tip of the
 /// generic face's fit that located the face gets a warning: the fit lies on another part of the
-/// face (the steps may still find the right points), and the orientation figures and the line
-/// of sight are that fit's (docs/measurements.md, stop 50). The line of sight's taper
-/// ([`localise::COVER_TAPER_MM`]): a fit off by more weights the face's own normals as if they
-/// were its border.
+/// face (the steps may still find the right points), and the orientation figures are that
+/// fit's (docs/measurements.md, stop 50). The width of [`localise::Localisation::coverage`]'s
+/// fall from the whole face to nothing ([`localise::COVER_TAPER_MM`]): a fit off by more no
+/// longer covers the same face.
 pub const FIT_NOSE_TIP_WARN_MM: f64 = localise::COVER_TAPER_MM;
 
 /// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have
