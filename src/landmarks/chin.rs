@@ -84,7 +84,7 @@ impl Detector<'_> {
             key[v] - 0.5 * (frame.uv(self.p(v)).x - mid_u).abs()
                 + forward * (self.p(v).z - frame.origin.z)
         };
-        // The reached vertex of largest score; the first reached (the start) wins ties.
+        // The vertex of `reached` with the largest score; the earliest reached wins ties.
         let furthest = |reached: &[usize], forward: f64| {
             (reached.iter().copied()).fold(reached[0], |best, v| {
                 if score(v, forward) > score(best, forward) {

@@ -333,12 +333,15 @@ impl LandmarkReport {
             .collect()
     }
 
-    /// How far the detected nose tip lies from the nose tip of `found`'s fit of the generic
-    /// face across the fitted face (in its plane; along its direction the two differ by how
-    /// far this nose protrudes beyond the generic one's), mm.
-    pub fn fit_nose_tip_offset_mm(&self, found: &localise::Localisation) -> f64 {
-        let d = self.landmarks.get(FeaturePoint::NoseTip) - found.nose_tip_in_scan;
-        (found.face_from_scan * d).truncate().length()
+    /// How far the detected nose tip lies from the nose tip of the [`Self::localisation`] fit
+    /// of the generic face, across the fitted face (in its plane; along its direction the two
+    /// differ by how far this nose protrudes beyond the generic one's), mm; `None` without
+    /// localisation.
+    pub fn fit_nose_tip_offset_mm(&self) -> Option<f64> {
+        self.localisation.map(|l| {
+            let d = self.landmarks.get(FeaturePoint::NoseTip) - l.nose_tip_in_scan;
+            (l.face_from_scan * d).truncate().length()
+        })
     }
 
     /// The CLI's JSON: `{"landmarks": {name: [x,y,z]}, "distances_mm": {...}, "warnings": [...]}`
@@ -397,7 +400,7 @@ impl LandmarkReport {
                     "yaw_deg": round3(yaw), "pitch_deg": round3(pitch), "roll_deg": round3(roll),
                     "face_from_scan": m.map(|r| r.map(|x| (x * 1e6).round() / 1e6)),
                     "nose_tip_fit_mm": l.nose_tip_in_scan.to_array().map(round3),
-                    "nose_tip_fit_offset_mm": round3(self.fit_nose_tip_offset_mm(&l)),
+                    "nose_tip_fit_offset_mm": self.fit_nose_tip_offset_mm().map(round3),
                     "fit_rms_mm": round3(l.rms_mm),
                     "size_vs_generic_face": round3(l.scale),
                     "candidates_fitted": l.candidates_fitted,
@@ -553,8 +556,8 @@ fn steps_for(
             .landmarks
             .set(p, scan_from_face * report.landmarks.get(p));
     }
-    let off_mm = report.fit_nose_tip_offset_mm(&found);
-    if off_mm > FIT_NOSE_TIP_WARN_MM {
+    report.localisation = Some(found);
+    if let Some(off_mm) = (report.fit_nose_tip_offset_mm()).filter(|&d| d > FIT_NOSE_TIP_WARN_MM) {
         report.warnings.push(format!(
             "face localisation: the generic face's fit puts the nose tip {off_mm:.1} mm from the \
              detected one (more than {FIT_NOSE_TIP_WARN_MM} mm): it lies on another part of the \
@@ -564,7 +567,6 @@ fn steps_for(
     }
     let yaw_deg = yaw_from_line_of_sight(scan.normal_sum, found.face_from_scan);
     report.suspect = suspect_reasons(Some((&found, yaw_deg)), &report, localise_params);
-    report.localisation = Some(found);
     Ok(report)
 }
 

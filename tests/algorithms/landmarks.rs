@@ -338,7 +338,7 @@ fn a_generic_face_fit_far_from_the_detected_nose_tip_is_reported() {
     ] {
         let r =
             landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
-        let off_mm = r.fit_nose_tip_offset_mm(&r.localisation.unwrap());
+        let off_mm = r.fit_nose_tip_offset_mm().unwrap();
         let warned =
             (r.warnings.iter()).any(|w| w.starts_with("face localisation: the generic face's fit"));
         assert_eq!(
