@@ -13,7 +13,8 @@
 //!    two axes), and the best candidate of all wins.
 //! 2. **Nose candidates** per orientation: the peaks of protrusion (depth minus the mean depth
 //!    on a circle of [`LocaliseParams::probe_radius_mm`] around it, as in step 2) on a 3 mm
-//!    depth grid, at most [`LocaliseParams::candidates`] per orientation, 30 mm apart. A nose
+//!    depth grid, at most [`LocaliseParams::candidates`] per orientation, 30 mm apart, each
+//!    moved to the local maximum of depth it climbs to (a vertex, not a cell centre). A nose
 //!    protrudes 15–25 mm from the cheeks, lip and brow at that radius; a chin, a collar or a
 //!    shoulder can protrude as far, which is why the candidates are scored and not trusted.
 //! 3. **Fit** of the generic face's upper part (every vertex above [`TEMPLATE_MIN_Y_MM`]:
@@ -353,14 +354,18 @@ fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) 
     }
     // Front-most depth per cell: what a scanner looking along −z would see.
     let mut top = vec![f64::NEG_INFINITY; nx * ny];
+    let mut top_vertex = vec![usize::MAX; nx * ny];
     let cell_of = |q: DVec2| -> usize {
         let i = (((q.x - lo.x) / CELL) as usize).min(nx - 1);
         let j = (((q.y - lo.y) / CELL) as usize).min(ny - 1);
         j * nx + i
     };
-    for p in &pts {
+    for (v, p) in pts.iter().enumerate() {
         let k = cell_of(p.truncate());
-        top[k] = top[k].max(p.z);
+        if p.z > top[k] {
+            top[k] = p.z;
+            top_vertex[k] = v;
+        }
     }
     let at = |q: DVec2| -> Option<f64> {
         if q.x < lo.x || q.y < lo.y || q.x > hi.x || q.y > hi.y {
@@ -405,8 +410,35 @@ fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) 
             }
         }
     }
+    // Each kept cell climbs to the front-most of its eight neighbours until none is further in
+    // front, and the candidate is that cell's front-most vertex: the local maximum of depth,
+    // which lies where it lies however the cells fall. A cell centre is up to 2 mm off it and
+    // moves with the scan's bounds (a torso or a hair cap far from the face), and fits started
+    // 3 mm apart can settle on different parts of a face (docs/measurements.md, stop 51).
+    let climb = |mut k: usize| loop {
+        let (i, j) = (k % nx, k / nx);
+        let mut best = k;
+        for b in j.saturating_sub(1)..(j + 2).min(ny) {
+            for a in i.saturating_sub(1)..(i + 2).min(nx) {
+                if top[b * nx + a] > top[best] {
+                    best = b * nx + a;
+                }
+            }
+        }
+        if best == k {
+            return k;
+        }
+        k = best;
+    };
     let scan_from_face = face_from_scan.transpose();
-    kept.into_iter().map(|q| scan_from_face * q).collect()
+    let mut tips: Vec<DVec3> = Vec::new();
+    for q in kept {
+        let tip = scan_from_face * pts[top_vertex[climb(cell_of(q.truncate()))]];
+        if !tips.contains(&tip) {
+            tips.push(tip);
+        }
+    }
+    tips
 }
 
 fn bounds(pts: &[DVec3]) -> Option<(DVec3, DVec3)> {
@@ -434,6 +466,47 @@ mod tests {
             }
         }
         assert_eq!(AxisFrame::SCANNER.face_from_scan(), DMat3::IDENTITY);
+    }
+
+    #[test]
+    fn a_surface_far_from_the_face_does_not_move_the_nose_candidates() {
+        let mut mesh = generic_face::build().mesh;
+        for p in &mut mesh.positions_mm {
+            *p += DVec3::new(0.7, 1.1, 0.0);
+        }
+        let params = LocaliseParams::default();
+        let alone = nose_candidates(&mesh, DMat3::IDENTITY, &params);
+        assert!(!alone.is_empty());
+        // One vertex 200 mm below and beside the face: it widens the bounds by a distance that
+        // is not a whole number of cells, and cannot be a peak itself (no surface around it).
+        let (lo, _) = mesh.bbox_mm().unwrap();
+        mesh.positions_mm.push(lo - DVec3::new(200.5, 150.8, 0.0));
+        mesh.normals.push(DVec3::Z);
+        assert_eq!(nose_candidates(&mesh, DMat3::IDENTITY, &params), alone);
+    }
+
+    #[test]
+    fn the_nose_candidate_is_the_front_most_vertex_wherever_the_cells_fall() {
+        let generic = generic_face::build().mesh;
+        let params = LocaliseParams::default();
+        for shift_mm in [0.0, 0.7, 1.4, 2.1] {
+            let offset = DVec3::new(shift_mm, -shift_mm, 0.0);
+            let mut mesh = generic.clone();
+            for p in &mut mesh.positions_mm {
+                *p += offset;
+            }
+            let front = mesh
+                .positions_mm
+                .iter()
+                .copied()
+                .max_by(|a, b| a.z.total_cmp(&b.z))
+                .unwrap();
+            let tips = nose_candidates(&mesh, DMat3::IDENTITY, &params);
+            assert!(
+                tips.contains(&front),
+                "shift {shift_mm}: {tips:?}, front {front}"
+            );
+        }
     }
 
     #[test]

@@ -144,7 +144,8 @@
 //! neutral scans have all scored points within 10 mm (fifteen seeds; 40 on the two made after the
 //! last change). Real scans in `../shared/data`: 28 of 34 agree within 12 mm with an independent
 //! detector (`scripts/real_landmarks.sh`; of the six others, five are flagged suspect: the two
-//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001). Denoise + detection, release build
+//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001; cara8_abajo agrees and is flagged
+//! for its face-likeness). Denoise + detection, release build
 //! on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1). Figures, how to
 //! reproduce them, and what was tried: `docs/measurements.md`.
 
