@@ -381,7 +381,8 @@ fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) 
             DVec2::new(a.cos(), a.sin()) * r
         })
         .collect();
-    let mut peaks: Vec<(f64, DVec3)> = Vec::new();
+    // (protrusion, cell, cell centre)
+    let mut peaks: Vec<(f64, usize, DVec2)> = Vec::new();
     for (k, &z) in top.iter().enumerate() {
         if z == f64::NEG_INFINITY {
             continue;
@@ -394,17 +395,14 @@ fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) 
         }
         let protrusion = z - ring.iter().sum::<f64>() / ring.len() as f64;
         if protrusion >= params.min_protrusion_mm {
-            peaks.push((protrusion, DVec3::new(c.x, c.y, z)));
+            peaks.push((protrusion, k, c));
         }
     }
     peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let mut kept: Vec<DVec3> = Vec::new();
-    for (_, q) in peaks {
-        if kept
-            .iter()
-            .all(|k| (k.truncate() - q.truncate()).length() >= SEPARATION_MM)
-        {
-            kept.push(q);
+    let mut kept: Vec<(usize, DVec2)> = Vec::new();
+    for (_, k, c) in peaks {
+        if kept.iter().all(|(_, d)| (*d - c).length() >= SEPARATION_MM) {
+            kept.push((k, c));
             if kept.len() == params.candidates {
                 break;
             }
@@ -430,15 +428,14 @@ fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) 
         }
         k = best;
     };
-    let scan_from_face = face_from_scan.transpose();
-    let mut tips: Vec<DVec3> = Vec::new();
-    for q in kept {
-        let tip = scan_from_face * pts[top_vertex[climb(cell_of(q.truncate()))]];
-        if !tips.contains(&tip) {
-            tips.push(tip);
+    let mut tips: Vec<usize> = Vec::new();
+    for (k, _) in kept {
+        let v = top_vertex[climb(k)];
+        if !tips.contains(&v) {
+            tips.push(v);
         }
     }
-    tips
+    tips.into_iter().map(|v| mesh.positions_mm[v]).collect()
 }
 
 fn bounds(pts: &[DVec3]) -> Option<(DVec3, DVec3)> {
