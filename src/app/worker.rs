@@ -294,10 +294,7 @@ fn detect(mesh: &Mesh) -> Result<DetectionState, String> {
     let params = crate::landmarks::LandmarkParams::default();
     let e = |e: crate::Error| e.to_string();
     mesh.validate()?;
-    let topology = crate::mesh::Topology::new(mesh);
-    let desc =
-        crate::curvature::compute_with_topology(mesh, &topology, &params.curvature).map_err(e)?;
-    let report = crate::landmarks::detect_with(mesh, &topology, &desc, &params).map_err(e)?;
+    let (report, desc) = crate::landmarks::detect_with_descriptors(mesh, &params).map_err(e)?;
     Ok(DetectionState {
         report,
         shape_index: desc.shape_index,

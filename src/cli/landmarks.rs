@@ -19,14 +19,22 @@ pub fn landmarks(
     if denoise_first {
         denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
     }
-    let found = crate::landmarks::detect(&mesh, params);
+    let found = crate::landmarks::detect_with_descriptors(&mesh, params);
     let millis = start.elapsed().as_secs_f64() * 1e3;
     if let Some(path) = png {
-        let d = crate::curvature::compute(&mesh, &params.curvature)?;
-        let points = found.as_ref().ok().map(|r| &r.landmarks);
-        crate::landmarks::render::write_png(path, &mesh, &d.shape_index, points)?;
+        // The shape index the steps read; where detection failed, on the whole scan's sampling.
+        let shape_index = match &found {
+            Ok((_, d)) => d.shape_index.clone(),
+            Err(_) => {
+                (crate::curvature::compute(&mesh, &params.curvature_for(&mesh, None))?).shape_index
+            }
+        };
+        let points = found.as_ref().ok().map(|(r, _)| &r.landmarks);
+        crate::landmarks::render::write_png(path, &mesh, &shape_index, points)?;
     }
-    let report = found.with_context(|| format!("{}: feature points not found", input.display()))?;
+    let report = found
+        .map(|(r, _)| r)
+        .with_context(|| format!("{}: feature points not found", input.display()))?;
     if !report.suspect.is_empty() {
         eprintln!(
             "facesynth: {}: suspect feature points: {}",

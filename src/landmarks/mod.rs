@@ -38,8 +38,8 @@
 //!
 //! # Parameters and units
 //!
-//! [`LandmarkParams`]: the descriptor neighbourhood (rings), the nose probe radius (mm) and
-//! the two fissure refinements (on / off). Every other threshold is a named constant in the
+//! [`LandmarkParams`]: the descriptor neighbourhood (its reach, mm, turned into rings by the
+//! face's sampling), the nose probe radius (mm) and the two fissure refinements (on / off). Every other threshold is a named constant in the
 //! file of its step, re-exported here: lengths in mm, angles in degrees, curvedness in 1/mm;
 //! `S` is the shape index (0 cup, 0.5 saddle or flat, 1 cap); `|∂/∂x|`, `|∂/∂z|` are the
 //! components of the fitted unit normal and `∇xy` the in-plane slope, all dimensionless.
@@ -140,12 +140,12 @@
 //!
 //! # Accuracy and speed
 //!
-//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 37–40 of 40
-//! neutral scans have all scored points within 10 mm (fifteen seeds; 40 on the two made after the
-//! last change). Real scans in `../shared/data`: 28 of 34 agree within 12 mm with an independent
-//! detector (`scripts/real_landmarks.sh`; of the six others, five are flagged suspect: the two
-//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001; cara8_abajo agrees and is flagged
-//! for its face-likeness). Denoise + detection, release build
+//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 38–40 of 40
+//! neutral scans have all scored points within 10 mm (fourteen seeds; 40 on the two made after
+//! the last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an independent
+//! detector (`scripts/real_landmarks.sh`; of the seven others, five are flagged suspect: the two
+//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as sampled twice as densely and
+//! at 3 mm (`scripts/resample_real.py`). Denoise + detection, release build
 //! on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1). Figures, how to
 //! reproduce them, and what was tried: `docs/measurements.md`.
 
@@ -156,6 +156,7 @@ pub mod render;
 mod cheeks;
 mod chin;
 mod consensus;
+mod descriptors;
 mod detector;
 mod eyes;
 mod fissure;
@@ -177,6 +178,9 @@ pub use chin::{
     CHIN_WALK_START_BELOW_MOUTH_MM,
 };
 pub use consensus::{CONSENSUS_KEEP_MM, CONSENSUS_TILT_DEG, UNSTABLE_SPREAD_MM};
+pub use descriptors::{
+    MAX_DESCRIPTOR_RINGS, MIN_DESCRIPTOR_RINGS, SPACING_RADIUS_MM, face_spacing_mm,
+};
 pub use detector::FEATURE_MIN_CURVEDNESS_PER_MM;
 pub use eyes::{
     FISSURE_BOX_MM, FISSURE_DEPTH_BAND_MM, FISSURE_LONE_MAX_UP_MM, FISSURE_MAX_MEDIAL_MM,
@@ -216,10 +220,18 @@ use serde_json::json;
 /// Parameters of [`detect`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LandmarkParams {
-    /// Descriptor neighbourhood. Default: 5 rings (≈ ±7 mm on a 1.47 mm grid), which
-    /// averages out the 0.15 mm scanner noise the denoiser leaves (a 2-ring fit turns it into
-    /// shape-index noise of ±0.2 on flat skin).
+    /// Descriptor settings. Its `rings` are used as given only where
+    /// [`Self::descriptor_reach_mm`] is `None`; default 5.
     pub curvature: CurvatureParams,
+    /// How far the descriptors' quadric fit reaches, mm: the fit takes
+    /// `round(reach / median edge length)` rings ([`Self::curvature_for`]), so that the shape
+    /// index describes the same surface at any sampling density. Default `Some(10.0)`: 5
+    /// rings at the middle of the whole scans' spacings the steps were measured on (1.5–2.4
+    /// mm: GavabDB, POL-DB, the generated benchmark; their faces, 1.4–2.2 mm, get 5–7
+    /// rings), wide enough to average out the 0.15 mm scanner noise the denoiser leaves (a
+    /// 2-ring fit turns it into shape-index noise of ±0.2 on flat skin). `None`:
+    /// `curvature.rings` whatever the spacing (the paper's fixed rings).
+    pub descriptor_reach_mm: Option<f64>,
     /// Radius of the circle the nose tip's protrusion is measured against, mm (> 0).
     /// Default 25 mm: the nose's base half-width, so the circle lies on cheeks, lip and brow.
     pub nose_probe_radius_mm: f64,
@@ -243,6 +255,7 @@ impl Default for LandmarkParams {
                 rings: 5,
                 ..CurvatureParams::default()
             },
+            descriptor_reach_mm: Some(10.0),
             nose_probe_radius_mm: 25.0,
             inner_eye_at_fissure: true,
             outer_eye_at_fissure: true,
@@ -253,6 +266,14 @@ impl Default for LandmarkParams {
 
 impl LandmarkParams {
     fn validate(&self) -> Result<()> {
+        if let Some(reach_mm) = self.descriptor_reach_mm
+            && !(reach_mm > 0.0 && reach_mm.is_finite())
+        {
+            return Err(Error::algorithm(
+                "landmarks",
+                format!("descriptor_reach_mm must be > 0, got {reach_mm}"),
+            ));
+        }
         if !(self.nose_probe_radius_mm > 0.0 && self.nose_probe_radius_mm.is_finite()) {
             return Err(Error::algorithm(
                 "landmarks",
@@ -417,35 +438,27 @@ fn round3(x: f64) -> f64 {
 
 /// Detects the 13 feature points of a (denoised) frontal scan.
 pub fn detect(mesh: &Mesh, params: &LandmarkParams) -> Result<LandmarkReport> {
+    detect_with_descriptors(mesh, params).map(|(report, _)| report)
+}
+
+/// [`detect`], with the surface descriptors the steps read (the editor shows the same maps):
+/// computed with [`LandmarkParams::curvature_for`] on the sampling about the located face.
+pub fn detect_with_descriptors(
+    mesh: &Mesh,
+    params: &LandmarkParams,
+) -> Result<(LandmarkReport, SurfaceDescriptors)> {
     mesh.validate().map_err(Error::InvalidMesh)?;
     params.validate()?;
     let topology = Topology::new(mesh);
-    let desc = curvature::compute_with_topology(mesh, &topology, &params.curvature)?;
-    detect_with(mesh, &topology, &desc, params)
-}
-
-/// [`detect`] on precomputed topology and descriptors (the editor shows the same maps).
-pub fn detect_with(
-    mesh: &Mesh,
-    topology: &Topology,
-    desc: &SurfaceDescriptors,
-    params: &LandmarkParams,
-) -> Result<LandmarkReport> {
-    params.validate()?;
     let n = mesh.vertex_count();
-    if desc.len() != n || topology.vertex_count() != n {
-        return Err(Error::InvalidMesh(format!(
-            "descriptors/topology have {}/{} entries, mesh has {n} vertices",
-            desc.len(),
-            topology.vertex_count()
-        )));
-    }
     let Some(localise_params) = params.localise else {
-        let mut report = Detector::new(mesh, topology, desc, params, None)
+        let desc =
+            curvature::compute_with_topology(mesh, &topology, &params.curvature_for(mesh, None))?;
+        let mut report = Detector::new(mesh, &topology, &desc, params, None)
             .run()?
             .into_report();
         report.suspect = suspect_reasons(None, &report, &localise::LocaliseParams::default());
-        return Ok(report);
+        return Ok((report, desc));
     };
     if n < MIN_FACE_VERTICES {
         return Err(Error::algorithm(
@@ -457,11 +470,39 @@ pub fn detect_with(
     // best) each get the steps; the one whose points pass the most anatomical checks wins.
     let finalists = localise::localise_finalists(mesh, &localise_params)?;
     let best_rank = finalists[0].1;
+    // The descriptors' rings follow the sampling of the face (about the best-ranked fit's nose
+    // tip), not of a torso or hair cap sampled otherwise.
+    let around = Some(finalists[0].0.nose_tip_in_scan);
+    let desc =
+        curvature::compute_with_topology(mesh, &topology, &params.curvature_for(mesh, around))?;
+    let report = detect_located(
+        mesh,
+        &topology,
+        &desc,
+        params,
+        &localise_params,
+        finalists,
+        best_rank,
+    )?;
+    Ok((report, desc))
+}
+
+/// The nine steps on each finalist of face localisation within [`PLAUSIBILITY_TIE`] of the
+/// best; the most plausible result.
+fn detect_located(
+    mesh: &Mesh,
+    topology: &Topology,
+    desc: &SurfaceDescriptors,
+    params: &LandmarkParams,
+    localise_params: &localise::LocaliseParams,
+    finalists: Vec<(localise::Localisation, f64)>,
+    best_rank: f64,
+) -> Result<LandmarkReport> {
     let scan = Scan {
         mesh,
         topology,
         desc,
-        normal_sum: face_normal_sum(mesh, &finalists[0].0),
+        normal_sum: face_normal_sum(mesh, topology, &finalists[0].0),
     };
     let mut turned = consensus::Turned::new(mesh, desc);
     let mut best: Option<(usize, LandmarkReport)> = None;
@@ -469,7 +510,7 @@ pub fn detect_with(
         if rank < best_rank - PLAUSIBILITY_TIE {
             continue;
         }
-        let report = match steps_for(&scan, &mut turned, params, &localise_params, found) {
+        let report = match steps_for(&scan, &mut turned, params, localise_params, found) {
             Ok(r) => r,
             Err(e) if k == 0 => return Err(e),
             Err(_) => continue,
@@ -510,19 +551,34 @@ struct Scan<'a> {
 }
 
 /// The sum of the vertex normals of the surface about the face `found`, weighted by
-/// [`localise::Localisation::coverage`]: the line of sight's estimate ([`steps_frame`]). Only
-/// the face counts: a torso, shoulders, a wall or anything else in the file would otherwise
-/// turn the view the steps read depth along (measured: a flat patch 1 m beside cara1_abajo
-/// moved its inner eye corner 5.7 mm; turned 45°, 133 mm). It is taken about the best-ranked
+/// [`localise::Localisation::coverage`], over the part of the mesh connected to the vertex
+/// nearest the fit's nose tip: the line of sight's estimate ([`steps_frame`]). Only the face
+/// counts: a torso, shoulders, a wall or anything else in the file would otherwise turn the
+/// view the steps read depth along (measured: a flat patch 1 m beside cara1_abajo moved its
+/// inner eye corner 5.7 mm; turned 45°, 133 mm). The coverage sphere alone let a separate
+/// surface within the face's radius count (a torso 40 mm below the chin moved cara1_abajo's
+/// mouth corner 2.7 mm and cara5_gesto's nose tip 3.1 mm; docs/measurements.md, stop 52). It is taken about the best-ranked
 /// finalist and serves every finalist: about each finalist's own face, a face located on the
 /// chin and pitched 33° came with a view that agreed with it and won (generated risa scans,
 /// 65 mm off); over all finalists together, the estimate followed which finalists tied, and a
 /// rotated copy's forehead moved 6.6 mm.
-fn face_normal_sum(mesh: &Mesh, found: &localise::Localisation) -> glam::DVec3 {
+fn face_normal_sum(
+    mesh: &Mesh,
+    topology: &Topology,
+    found: &localise::Localisation,
+) -> glam::DVec3 {
+    let tip = found.nose_tip_in_scan;
+    let nearest = (0..mesh.vertex_count()).min_by(|&a, &b| {
+        let d = |v: usize| mesh.positions_mm[v].distance_squared(tip);
+        d(a).total_cmp(&d(b))
+    });
+    let face = topology.within_rings(&nearest.into_iter().collect::<Vec<_>>(), usize::MAX);
     mesh.positions_mm
         .iter()
         .zip(&mesh.normals)
-        .map(|(p, n)| *n * found.coverage(*p))
+        .zip(face)
+        .filter(|(_, on_face)| *on_face)
+        .map(|((p, n), _)| *n * found.coverage(*p))
         .sum()
 }
 

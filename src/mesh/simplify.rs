@@ -10,10 +10,17 @@ use std::collections::HashMap;
 
 /// The median edge length of `mesh`, mm (0 for a mesh without edges).
 pub fn median_edge_mm(mesh: &Mesh) -> f64 {
+    median_edge_mm_where(mesh, |_| true)
+}
+
+/// The median length of the edges of `mesh` whose two vertices are both `kept`, mm (0 where
+/// there are none).
+pub fn median_edge_mm_where(mesh: &Mesh, kept: impl Fn(u32) -> bool) -> f64 {
     let mut lengths: Vec<f64> = mesh
         .faces
         .iter()
         .flat_map(|poly| (0..poly.len()).map(move |k| (poly[k], poly[(k + 1) % poly.len()])))
+        .filter(|&(a, b)| kept(a) && kept(b))
         .map(|(a, b)| (mesh.positions_mm[a as usize] - mesh.positions_mm[b as usize]).length())
         .collect();
     if lengths.is_empty() {

@@ -124,6 +124,9 @@ impl Topology {
             inside[v] = true;
         }
         for _ in 0..rings {
+            if front.is_empty() {
+                break;
+            }
             let mut next = Vec::new();
             for &v in &front {
                 for &u in self.neighbours(v) {

@@ -129,8 +129,10 @@ fn outer_eye_corners_at_the_fissure_end_are_closer_to_the_truth() {
     assert_closer_with_defaults(&prior_only, ["outer_eye_left", "outer_eye_right"]);
 }
 
-/// On the small generated set, the default parameters put `points` closer to the ground
-/// truth than `without` does, on neutral and on expression scans.
+/// On the small generated set, the default parameters put `points` no farther from the ground
+/// truth than `without` does, on neutral and on expression scans, and closer on at least one
+/// of the two (with the descriptors' 10 mm reach the pit is already at the left fissure's end
+/// on the neutral scans: 2.88 mm either way; expressions 3.37 → 2.99 mm).
 fn assert_closer_with_defaults(without: &LandmarkParams, points: [&str; 2]) {
     let dir = common::synth_dataset(4, 3, false);
     let before = eval::evaluate_dir(&dir, true, without).unwrap().summary();
@@ -145,7 +147,10 @@ fn assert_closer_with_defaults(without: &LandmarkParams, points: [&str; 2]) {
             "{p}: neutral {:.2} -> {:.2}, expressions {:.2} -> {:.2}",
             b.0, a.0, b.1, a.1
         );
-        assert!(a.0 < b.0 && a.1 < b.1, "{p}: {b:?} -> {a:?}");
+        assert!(
+            a.0 <= b.0 && a.1 <= b.1 && (a.0 < b.0 || a.1 < b.1),
+            "{p}: {b:?} -> {a:?}"
+        );
     }
 }
 
@@ -294,7 +299,8 @@ fn real_scans_with_one_eye_corner_off_are_flagged_by_the_level_check() {
     // Seen in a zoomed eye picture beside the independent detector's points: cara52_frontal2's
     // left inner corner sits ~5 mm below the canthus, on the side of the nose, the right one
     // ~3 mm above its canthus. No other concave region gives a level pair, so detection keeps
-    // them; the level check flags the inner pair (6.3 mm apart in height).
+    // them; the level check flags the inner pair (measured 10.8 mm apart in height; 6.3 with
+    // 5 descriptor rings and the line of sight over every surface near the face).
     let name = "pointclouds/cara52_frontal2_filtered_raw.txt";
     let r = landmarks::detect(&denoised(&common::gavab(name)), &LandmarkParams::default()).unwrap();
     let inner = r.level.iter().find(|l| l.name == "inner_eye").unwrap();
@@ -384,6 +390,121 @@ fn meshes_without_a_face_are_typed_errors() {
     assert!(e.to_string().contains("segmentation"), "{e}");
     // An empty mesh.
     assert!(landmarks::detect(&Mesh::default(), &LandmarkParams::default()).is_err());
+}
+
+/// The descriptors' fit reaches the same millimetres at any sampling: 10 mm is 5 rings of a
+/// 2 mm grid and 10 of a 1 mm grid; the rings stay within their bounds on extreme grids; with
+/// no reach the given rings are used whatever the spacing.
+#[test]
+fn descriptor_rings_follow_the_sampling() {
+    let params = LandmarkParams::default();
+    for (step_mm, rings) in [
+        (2.0, 5),
+        (1.0, 10),
+        (0.25, landmarks::MAX_DESCRIPTOR_RINGS),
+        (20.0, landmarks::MIN_DESCRIPTOR_RINGS),
+    ] {
+        let mut plate = Mesh::default();
+        add_patch(
+            &mut plate,
+            (0.0, 40.0 * step_mm),
+            (0.0, 40.0 * step_mm),
+            step_mm,
+            &|_, _| 0.0,
+        );
+        assert_eq!(
+            params.curvature_for(&plate, None).rings,
+            rings,
+            "{step_mm} mm"
+        );
+        let fixed = LandmarkParams {
+            descriptor_reach_mm: None,
+            ..params
+        };
+        assert_eq!(
+            fixed.curvature_for(&plate, None).rings,
+            params.curvature.rings
+        );
+    }
+}
+
+/// `mesh` with every triangle split into four at its edge midpoints: the same piecewise-linear
+/// surface sampled at half the spacing.
+fn split_one_to_four(mesh: &Mesh) -> Mesh {
+    let mut positions = mesh.positions_mm.clone();
+    let mut mids = std::collections::HashMap::new();
+    let mut mid = |a: u32, b: u32| {
+        *mids.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            positions.push((mesh.positions_mm[a as usize] + mesh.positions_mm[b as usize]) / 2.0);
+            positions.len() as u32 - 1
+        })
+    };
+    let mut faces = Vec::new();
+    for [a, b, c] in mesh.triangles() {
+        let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    Mesh::from_faces(positions, faces)
+}
+
+/// A scanner that samples the face twice as densely gives the same points: real scans split
+/// 1 → 4 (GavabDB's ~1.7 mm spacing becomes ~0.85 mm, a structured-light scanner's) are
+/// detected like the scans themselves, because the descriptors' fit reaches the same
+/// millimetres (`LandmarkParams::descriptor_reach_mm`). Measured: no anatomical point moves
+/// more than 4.4 (cara1_sonrisa) and 3.0 mm (cara48_frontal1), neither is suspect; with 5
+/// rings whatever the spacing, a mouth corner moved 14.1 mm (suspect) and an inner eye corner
+/// 11.2 mm. On the 34 real scans the median of the largest move is 4.5 mm
+/// (`scripts/resample_real.py`).
+#[test]
+fn a_scan_sampled_twice_as_densely_gives_the_same_points() {
+    for path in [
+        common::gavab("cara1_sonrisa.wrl"),
+        common::gavab("pointclouds/cara48_frontal1_filtered_raw.txt"),
+    ] {
+        let raw = io::read_mesh(&path).unwrap();
+        let mut dense = split_one_to_four(&raw);
+        denoise::denoise(&mut dense, &denoise::DenoiseParams::default()).unwrap();
+        let plain = landmarks::detect(&denoised(&path), &LandmarkParams::default()).unwrap();
+        let found = landmarks::detect(&dense, &LandmarkParams::default()).unwrap();
+        assert!(found.suspect.is_empty(), "{path:?}: {:?}", found.suspect);
+        for p in FeaturePoint::ALL
+            .into_iter()
+            .filter(|p| !FeaturePoint::BORDER.contains(p))
+        {
+            let moved = found.landmarks.get(p).distance(plain.landmarks.get(p));
+            assert!(moved < 6.0, "{path:?}: {} moved {moved:.1} mm", p.name());
+        }
+    }
+}
+
+/// Something that protrudes like a nose but is no face (a round bump, an elongated ridge on a
+/// plate 180 mm wide) is detected, but the detection is suspect for its face-likeness (measured
+/// 0.21 and 0.24; real faces 0.44–0.85), not only for the points it had to guess.
+#[test]
+fn a_bump_that_protrudes_like_a_nose_is_not_face_like() {
+    let bump = |x: f64, y: f64| 20.0 * (-(x * x + y * y) / (2.0 * 12f64.powi(2))).exp();
+    let ridge = |x: f64, y: f64| {
+        25.0 * (-(x * x) / (2.0 * 10f64.powi(2)) - (y * y) / (2.0 * 25f64.powi(2))).exp()
+    };
+    for (name, z) in [
+        ("bump", &bump as &dyn Fn(f64, f64) -> f64),
+        ("ridge", &ridge),
+    ] {
+        let mut mesh = Mesh::default();
+        add_patch(&mut mesh, (-90.0, 90.0), (-90.0, 90.0), 2.0, z);
+        let report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
+        let likeness = report.localisation.unwrap().face_likeness;
+        let params = landmarks::localise::LocaliseParams::default();
+        assert!(likeness < params.face_likeness_min, "{name}: {likeness}");
+        assert!(
+            report
+                .suspect
+                .iter()
+                .any(|r| r.starts_with("face-likeness")),
+            "{name}: {:?}",
+            report.suspect
+        );
+    }
 }
 
 #[test]
