@@ -145,9 +145,9 @@
 //! the last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an independent
 //! detector (`scripts/real_landmarks.sh`; of the seven others, five are flagged suspect: the two
 //! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as sampled twice as densely and
-//! at 3 mm (`scripts/resample_real.py`). Denoise + detection, release build
-//! on one core, median: 82 + 135 ms (cara1_sonrisa), 26 + 100 ms (cara1_frontal1). Figures, how to
-//! reproduce them, and what was tried: `docs/measurements.md`.
+//! at 3 mm (`scripts/resample_real.py`). Denoise + detection, release build on one core, median
+//! (`bench-landmarks --repeat 15`, stop 52): 95 + 177 ms (cara1_sonrisa), 30 + 123 ms
+//! (cara1_frontal1). Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
 
 pub mod eval;
 pub mod localise;
