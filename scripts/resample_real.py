@@ -106,7 +106,8 @@ def main():
     binary = sys.argv[2] if len(sys.argv) > 2 else "target/release/facesynth"
     oracle = sys.argv[3] if len(sys.argv) > 3 else None
     data = "../shared/data"
-    scans = sorted(glob.glob(f"{data}/gavabdb/*.wrl") + glob.glob(f"{data}/gavabdb/pointclouds/*.txt")
+    scans = sorted(glob.glob(f"{data}/gavabdb/*.wrl")
+                   + glob.glob(f"{data}/gavabdb/pointclouds/*.txt")
                    + glob.glob(f"{data}/poldb/*.wrl"))
     copies = {"dense": dense, "coarse": coarse}
     for name in ["plain", *copies]:
@@ -143,8 +144,9 @@ def main():
                   f"{sum(d <= 2 for d in ds)}, within 5 mm {sum(d <= 5 for d in ds)} of {len(ds)}")
     if oracle:
         for name in ["plain", *copies]:
-            r = subprocess.run([sys.executable, "../shared/tools/landmark_agree.py", f"{out}/{name}",
-                                oracle], capture_output=True, text=True)
+            agree_py = "../shared/tools/landmark_agree.py"
+            r = subprocess.run([sys.executable, agree_py, f"{out}/{name}", oracle],
+                               capture_output=True, text=True)
             agree = r.stdout.strip().splitlines()[-1] if r.stdout.strip() else r.stderr.strip()
             suspect = sum(json.load(open(f))["suspect"] for f in glob.glob(f"{out}/{name}/*.json"))
             print(f"{name}: {agree}; suspect {suspect}")

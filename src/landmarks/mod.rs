@@ -38,11 +38,12 @@
 //!
 //! # Parameters and units
 //!
-//! [`LandmarkParams`]: the descriptor neighbourhood (its reach, mm, turned into rings by the
-//! face's sampling), the nose probe radius (mm) and the two fissure refinements (on / off). Every other threshold is a named constant in the
-//! file of its step, re-exported here: lengths in mm, angles in degrees, curvedness in 1/mm;
-//! `S` is the shape index (0 cup, 0.5 saddle or flat, 1 cap); `|∂/∂x|`, `|∂/∂z|` are the
-//! components of the fitted unit normal and `∇xy` the in-plane slope, all dimensionless.
+//! [`LandmarkParams`]: the descriptor neighbourhood (its reach, mm, turned into rings by the face's
+//! sampling), the nose probe radius (mm) and the two fissure refinements (on / off). Every other
+//! threshold is a named constant in the file of its step, re-exported here: lengths in mm, angles
+//! in degrees, curvedness in 1/mm; `S` is the shape index (0 cup, 0.5 saddle or flat, 1 cap);
+//! `|∂/∂x|`, `|∂/∂z|` are the components of the fitted unit normal and `∇xy` the in-plane slope,
+//! all dimensionless.
 //!
 //! # The steps, and where they differ from the paper
 //!
@@ -141,11 +142,11 @@
 //! # Accuracy and speed
 //!
 //! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 38–40 of 40
-//! neutral scans have all scored points within 10 mm (fourteen seeds; 40 on the two made after
-//! the last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an independent
+//! neutral scans have all scored points within 10 mm (fourteen seeds; 40 on the two made after the
+//! last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an independent
 //! detector (`scripts/real_landmarks.sh`; of the seven others, five are flagged suspect: the two
-//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as sampled twice as densely and
-//! at 3 mm (`scripts/resample_real.py`). Denoise + detection, release build on one core, median
+//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as they do sampled twice as densely
+//! or at 3 mm (`scripts/resample_real.py`). Denoise + detection, release build on one core, median
 //! (`bench-landmarks --repeat 15`, stop 52): 95 + 177 ms (cara1_sonrisa), 30 + 123 ms
 //! (cara1_frontal1). Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
 
@@ -469,21 +470,12 @@ pub fn detect_with_descriptors(
     // The finalists the face-likeness cannot tell apart (within `PLAUSIBILITY_TIE` of the
     // best) each get the steps; the one whose points pass the most anatomical checks wins.
     let finalists = localise::localise_finalists(mesh, &localise_params)?;
-    let best_rank = finalists[0].1;
     // The descriptors' rings follow the sampling of the face (about the best-ranked fit's nose
     // tip), not of a torso or hair cap sampled otherwise.
     let around = Some(finalists[0].0.nose_tip_in_scan);
     let desc =
         curvature::compute_with_topology(mesh, &topology, &params.curvature_for(mesh, around))?;
-    let report = detect_located(
-        mesh,
-        &topology,
-        &desc,
-        params,
-        &localise_params,
-        finalists,
-        best_rank,
-    )?;
+    let report = detect_located(mesh, &topology, &desc, params, &localise_params, finalists)?;
     Ok((report, desc))
 }
 
@@ -496,8 +488,8 @@ fn detect_located(
     params: &LandmarkParams,
     localise_params: &localise::LocaliseParams,
     finalists: Vec<(localise::Localisation, f64)>,
-    best_rank: f64,
 ) -> Result<LandmarkReport> {
+    let best_rank = finalists[0].1;
     let scan = Scan {
         mesh,
         topology,
@@ -551,17 +543,17 @@ struct Scan<'a> {
 }
 
 /// The sum of the vertex normals of the surface about the face `found`, weighted by
-/// [`localise::Localisation::coverage`], over the part of the mesh connected to the vertex
-/// nearest the fit's nose tip: the line of sight's estimate ([`steps_frame`]). Only the face
-/// counts: a torso, shoulders, a wall or anything else in the file would otherwise turn the
-/// view the steps read depth along (measured: a flat patch 1 m beside cara1_abajo moved its
-/// inner eye corner 5.7 mm; turned 45°, 133 mm). The coverage sphere alone let a separate
-/// surface within the face's radius count (a torso 40 mm below the chin moved cara1_abajo's
-/// mouth corner 2.7 mm and cara5_gesto's nose tip 3.1 mm; docs/measurements.md, stop 52). It is taken about the best-ranked
-/// finalist and serves every finalist: about each finalist's own face, a face located on the
-/// chin and pitched 33° came with a view that agreed with it and won (generated risa scans,
-/// 65 mm off); over all finalists together, the estimate followed which finalists tied, and a
-/// rotated copy's forehead moved 6.6 mm.
+/// [`localise::Localisation::coverage`], over the part of the mesh connected to the vertex nearest
+/// the fit's nose tip: the line of sight's estimate ([`steps_frame`]). Only the face counts: a
+/// torso, shoulders, a wall or anything else in the file would otherwise turn the view the steps
+/// read depth along (measured: a flat patch 1 m beside cara1_abajo moved its inner eye corner 5.7
+/// mm; turned 45°, 133 mm). The coverage sphere alone let a separate surface within the face's
+/// radius count (a torso 40 mm below the chin moved cara1_abajo's mouth corner 2.7 mm and
+/// cara5_gesto's nose tip 3.1 mm; docs/measurements.md, stop 52). It is taken about the best-ranked
+/// finalist and serves every finalist: about each finalist's own face, a face located on the chin
+/// and pitched 33° came with a view that agreed with it and won (generated risa scans, 65 mm off);
+/// over all finalists together, the estimate followed which finalists tied, and a rotated copy's
+/// forehead moved 6.6 mm.
 fn face_normal_sum(
     mesh: &Mesh,
     topology: &Topology,
