@@ -132,7 +132,7 @@ fn outer_eye_corners_at_the_fissure_end_are_closer_to_the_truth() {
 /// On the small generated set, the default parameters put `points` no farther from the ground
 /// truth than `without` does, on neutral and on expression scans, and closer on at least one
 /// of the two (with the descriptors' 10 mm reach the pit is already at the left fissure's end
-/// on the neutral scans: 2.88 mm either way; expressions 3.37 → 2.99 mm).
+/// on the neutral scans: 2.88 mm either way; expressions 3.57 → 3.18 mm).
 fn assert_closer_with_defaults(without: &LandmarkParams, points: [&str; 2]) {
     let dir = common::synth_dataset(4, 3, false);
     let before = eval::evaluate_dir(&dir, true, without).unwrap().summary();
