@@ -32,6 +32,15 @@ pub const MIN_DESCRIPTOR_RINGS: usize = 2;
 /// finer than reach / 16 (0.6 mm at the default reach) get a shorter reach.
 pub const MAX_DESCRIPTOR_RINGS: usize = 16;
 
+/// The sampling the descriptors were fitted on, for the report (`descriptors` in the JSON).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DescriptorSampling {
+    /// The median edge length [`LandmarkParams::curvature_for`] measured, mm.
+    pub spacing_mm: f64,
+    /// The rings of the quadric fit.
+    pub rings: usize,
+}
+
 impl LandmarkParams {
     /// The descriptor settings for `mesh`: [`Self::curvature`] with its rings set from
     /// [`Self::descriptor_reach_mm`] and the median length of the edges within
@@ -40,6 +49,23 @@ impl LandmarkParams {
     /// The same surface sampled twice as densely gets twice the rings (measured on the 34
     /// real scans split 1 → 4 and clustered at 3 mm: docs/measurements.md, stop 52).
     pub fn curvature_for(&self, mesh: &Mesh, around: Option<glam::DVec3>) -> CurvatureParams {
+        self.curvature_with(self.descriptor_sampling(mesh, around))
+    }
+
+    /// [`Self::curvature`] with the rings of `sampling`.
+    pub fn curvature_with(&self, sampling: DescriptorSampling) -> CurvatureParams {
+        CurvatureParams {
+            rings: sampling.rings,
+            ..self.curvature
+        }
+    }
+
+    /// The spacing and the rings [`Self::curvature_for`] takes.
+    pub fn descriptor_sampling(
+        &self,
+        mesh: &Mesh,
+        around: Option<glam::DVec3>,
+    ) -> DescriptorSampling {
         let spacing_mm = face_spacing_mm(mesh, around);
         let rings = match self.descriptor_reach_mm {
             Some(reach_mm) if spacing_mm > 0.0 => (reach_mm / spacing_mm)
@@ -48,9 +74,6 @@ impl LandmarkParams {
                 as usize,
             _ => self.curvature.rings,
         };
-        CurvatureParams {
-            rings,
-            ..self.curvature
-        }
+        DescriptorSampling { spacing_mm, rings }
     }
 }

@@ -90,6 +90,7 @@ impl StepPoints {
             guessed: self.guessed,
             spread_mm: None,
             localisation: None,
+            descriptors: None,
             suspect: Vec::new(),
         }
     }

@@ -180,7 +180,8 @@ pub use chin::{
 };
 pub use consensus::{CONSENSUS_KEEP_MM, CONSENSUS_TILT_DEG, UNSTABLE_SPREAD_MM};
 pub use descriptors::{
-    MAX_DESCRIPTOR_RINGS, MIN_DESCRIPTOR_RINGS, SPACING_RADIUS_MM, face_spacing_mm,
+    DescriptorSampling, MAX_DESCRIPTOR_RINGS, MIN_DESCRIPTOR_RINGS, SPACING_RADIUS_MM,
+    face_spacing_mm,
 };
 pub use detector::FEATURE_MIN_CURVEDNESS_PER_MM;
 pub use eyes::{
@@ -321,6 +322,8 @@ pub struct LandmarkReport {
     /// Where the face was found and how it is turned ([`localise`]); `None` when localisation
     /// was switched off ([`LandmarkParams::localise`]).
     pub localisation: Option<localise::Localisation>,
+    /// The sampling the descriptors were fitted on ([`LandmarkParams::curvature_for`]).
+    pub descriptors: Option<DescriptorSampling>,
     /// Why the points should not be trusted, one line each; empty when nothing speaks against
     /// them. See [`suspect_reasons`].
     pub suspect: Vec<String>,
@@ -411,6 +414,9 @@ impl LandmarkReport {
                     .map(|p| (p.name().to_string(), json!(round3(s[p.index()]))))
                     .collect::<serde_json::Map<_, _>>()
             }),
+            "descriptors": self.descriptors.map(|d| {
+                json!({"spacing_mm": round3(d.spacing_mm), "rings": d.rings})
+            }),
             "confidence": self.localisation.map(|l| round3(l.face_likeness)),
             "suspect": !self.suspect.is_empty(),
             "suspect_reasons": self.suspect,
@@ -443,7 +449,8 @@ pub fn detect(mesh: &Mesh, params: &LandmarkParams) -> Result<LandmarkReport> {
 }
 
 /// [`detect`], with the surface descriptors the steps read (the editor shows the same maps):
-/// computed with [`LandmarkParams::curvature_for`] on the sampling about the located face.
+/// computed with [`LandmarkParams::curvature_for`] on the sampling about the located face
+/// ([`LandmarkReport::descriptors`]).
 pub fn detect_with_descriptors(
     mesh: &Mesh,
     params: &LandmarkParams,
@@ -453,12 +460,14 @@ pub fn detect_with_descriptors(
     let topology = Topology::new(mesh);
     let n = mesh.vertex_count();
     let Some(localise_params) = params.localise else {
+        let sampling = params.descriptor_sampling(mesh, None);
         let desc =
-            curvature::compute_with_topology(mesh, &topology, &params.curvature_for(mesh, None))?;
+            curvature::compute_with_topology(mesh, &topology, &params.curvature_with(sampling))?;
         let mut report = Detector::new(mesh, &topology, &desc, params, None)
             .run()?
             .into_report();
         report.suspect = suspect_reasons(None, &report, &localise::LocaliseParams::default());
+        report.descriptors = Some(sampling);
         return Ok((report, desc));
     };
     if n < MIN_FACE_VERTICES {
@@ -472,10 +481,10 @@ pub fn detect_with_descriptors(
     let finalists = localise::localise_finalists(mesh, &localise_params)?;
     // The descriptors' rings follow the sampling of the face (about the best-ranked fit's nose
     // tip), not of a torso or hair cap sampled otherwise.
-    let around = Some(finalists[0].0.nose_tip_in_scan);
-    let desc =
-        curvature::compute_with_topology(mesh, &topology, &params.curvature_for(mesh, around))?;
-    let report = detect_located(mesh, &topology, &desc, params, &localise_params, finalists)?;
+    let sampling = params.descriptor_sampling(mesh, Some(finalists[0].0.nose_tip_in_scan));
+    let desc = curvature::compute_with_topology(mesh, &topology, &params.curvature_with(sampling))?;
+    let mut report = detect_located(mesh, &topology, &desc, params, &localise_params, finalists)?;
+    report.descriptors = Some(sampling);
     Ok((report, desc))
 }
 

@@ -467,6 +467,16 @@ fn a_scan_sampled_twice_as_densely_gives_the_same_points() {
         let plain = landmarks::detect(&denoised(&path), &LandmarkParams::default()).unwrap();
         let found = landmarks::detect(&dense, &LandmarkParams::default()).unwrap();
         assert!(found.suspect.is_empty(), "{path:?}: {:?}", found.suspect);
+        // The report gives the sampling: about half the spacing (more where the split turned
+        // quads into triangles, whose diagonals are edges too: cara1_sonrisa 0.57), about twice
+        // the rings.
+        let (d, p) = (found.descriptors.unwrap(), plain.descriptors.unwrap());
+        let half = d.spacing_mm / p.spacing_mm;
+        assert!((0.45..0.6).contains(&half), "{path:?}: {d:?} against {p:?}");
+        assert!(
+            d.rings.abs_diff(2 * p.rings) <= 1,
+            "{path:?}: {d:?} against {p:?}"
+        );
         for p in FeaturePoint::ALL
             .into_iter()
             .filter(|p| !FeaturePoint::BORDER.contains(p))

@@ -133,6 +133,12 @@ fn landmarks_prints_points_distances_warnings_and_time() {
     assert_eq!(v["distances_mm"].as_object().unwrap().len(), 9);
     assert!(v["warnings"].is_array());
     assert!(v["millis"].as_f64().unwrap() > 0.0);
+    // The sampling the descriptors were fitted on: GavabDB's face is sampled every 1.4–1.8 mm,
+    // and the fit reaches `descriptor_reach_mm` (10 mm) in whole rings.
+    let spacing_mm = v["descriptors"]["spacing_mm"].as_f64().unwrap();
+    let rings = v["descriptors"]["rings"].as_u64().unwrap() as f64;
+    assert!((1.4..1.8).contains(&spacing_mm), "{}", v["descriptors"]);
+    assert_eq!(rings, (10.0 / spacing_mm).round(), "{}", v["descriptors"]);
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(saved["landmarks"], v["landmarks"]);
