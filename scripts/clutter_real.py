@@ -63,18 +63,26 @@ def detect(binary, obj, out_json):
     return json.load(open(out_json)), None
 
 
-def main():
-    out = sys.argv[1]
-    binary = sys.argv[2] if len(sys.argv) > 2 else "target/release/facesynth"
-    os.makedirs(out, exist_ok=True)
-    data = "../shared/data"
-    scans = sorted(glob.glob(f"{data}/gavabdb/*.wrl") + glob.glob(f"{data}/gavabdb/pointclouds/*.txt")
+def real_scans(data="../shared/data"):
+    """(stem, path) of every real scan in `data`, sorted by path, as `scripts/real_landmarks.sh`
+    names them (the point cloud of cara1_frontal1 shares its stem with the VRML scan of the same
+    capture, so it is cara1_frontal1_pc)."""
+    scans = sorted(glob.glob(f"{data}/gavabdb/*.wrl")
+                   + glob.glob(f"{data}/gavabdb/pointclouds/*.txt")
                    + glob.glob(f"{data}/poldb/*.wrl"))
-    kept = total = 0
     for scan in scans:
         stem = os.path.splitext(os.path.basename(scan))[0]
         if scan.endswith(".txt") and stem == "cara1_frontal1":
             stem += "_pc"
+        yield stem, scan
+
+
+def main():
+    out = sys.argv[1]
+    binary = sys.argv[2] if len(sys.argv) > 2 else "target/release/facesynth"
+    os.makedirs(out, exist_ok=True)
+    kept = total = 0
+    for stem, scan in real_scans():
         if "izquierda" in stem or "derecha" in stem:
             continue  # profiles: no torso or hair geometry to stand in for
         base = f"{out}/{stem}.obj"

@@ -23,10 +23,7 @@ import statistics
 import subprocess
 import sys
 
-ANATOMICAL = [
-    "nose_tip", "inner_eye_left", "inner_eye_right", "outer_eye_left", "outer_eye_right",
-    "nose_corner_left", "nose_corner_right", "mouth_corner_left", "mouth_corner_right", "chin",
-]
+from clutter_real import ANATOMICAL, detect, real_scans
 
 
 def read_obj(path):
@@ -93,33 +90,18 @@ def coarse(v, t, cell=3.0):
     return nv, nt
 
 
-def detect(binary, obj, out_json):
-    r = subprocess.run([binary, "landmarks", obj, "--json", out_json], capture_output=True,
-                       text=True)
-    if r.returncode != 0:
-        return None
-    return json.load(open(out_json))
-
-
 def main():
     out = sys.argv[1]
     binary = sys.argv[2] if len(sys.argv) > 2 else "target/release/facesynth"
     oracle = sys.argv[3] if len(sys.argv) > 3 else None
-    data = "../shared/data"
-    scans = sorted(glob.glob(f"{data}/gavabdb/*.wrl")
-                   + glob.glob(f"{data}/gavabdb/pointclouds/*.txt")
-                   + glob.glob(f"{data}/poldb/*.wrl"))
     copies = {"dense": dense, "coarse": coarse}
     for name in ["plain", *copies]:
         os.makedirs(f"{out}/{name}", exist_ok=True)
     moved = {name: [] for name in copies}
-    for scan in scans:
-        stem = os.path.splitext(os.path.basename(scan))[0]
-        if scan.endswith(".txt") and stem == "cara1_frontal1":
-            stem += "_pc"
+    for stem, scan in real_scans():
         base = f"{out}/{stem}.obj"
         subprocess.run([binary, "convert", scan, base], check=True, capture_output=True)
-        ref = detect(binary, base, f"{out}/plain/{stem}.json")
+        ref, _ = detect(binary, base, f"{out}/plain/{stem}.json")
         if ref is None:
             print(f"{stem}: baseline failed")
             continue
@@ -128,7 +110,7 @@ def main():
         for name, make in copies.items():
             obj = f"{out}/{stem}_{name}.obj"
             write_obj(obj, *make(v, t))
-            got = detect(binary, obj, f"{out}/{name}/{stem}.json")
+            got, _ = detect(binary, obj, f"{out}/{name}/{stem}.json")
             if got is None:
                 row.append(f"{name}: failed")
                 continue

@@ -21,20 +21,22 @@ pub fn landmarks(
     }
     let found = crate::landmarks::detect_with_descriptors(&mesh, params);
     let millis = start.elapsed().as_secs_f64() * 1e3;
+    let (found, shape_index) = match found {
+        Ok((report, d)) => (Ok(report), Some(d.shape_index)),
+        Err(e) => (Err(e), None),
+    };
     if let Some(path) = png {
         // The shape index the steps read; where detection failed, on the whole scan's sampling.
-        let shape_index = match &found {
-            Ok((_, d)) => d.shape_index.clone(),
-            Err(_) => {
-                (crate::curvature::compute(&mesh, &params.curvature_for(&mesh, None))?).shape_index
+        let shape_index = match shape_index {
+            Some(s) => s,
+            None => {
+                crate::curvature::compute(&mesh, &params.curvature_for(&mesh, None))?.shape_index
             }
         };
-        let points = found.as_ref().ok().map(|(r, _)| &r.landmarks);
+        let points = found.as_ref().ok().map(|r| &r.landmarks);
         crate::landmarks::render::write_png(path, &mesh, &shape_index, points)?;
     }
-    let report = found
-        .map(|(r, _)| r)
-        .with_context(|| format!("{}: feature points not found", input.display()))?;
+    let report = found.with_context(|| format!("{}: feature points not found", input.display()))?;
     if !report.suspect.is_empty() {
         eprintln!(
             "facesynth: {}: suspect feature points: {}",

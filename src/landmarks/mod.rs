@@ -568,12 +568,8 @@ fn face_normal_sum(
     topology: &Topology,
     found: &localise::Localisation,
 ) -> glam::DVec3 {
-    let tip = found.nose_tip_in_scan;
-    let nearest = (0..mesh.vertex_count()).min_by(|&a, &b| {
-        let d = |v: usize| mesh.positions_mm[v].distance_squared(tip);
-        d(a).total_cmp(&d(b))
-    });
-    let face = topology.within_rings(&nearest.into_iter().collect::<Vec<_>>(), usize::MAX);
+    let tip = frame::nearest(mesh, 0..mesh.vertex_count(), found.nose_tip_in_scan);
+    let face = topology.within_rings(&[tip], usize::MAX);
     mesh.positions_mm
         .iter()
         .zip(&mesh.normals)
