@@ -44,6 +44,25 @@ pub const CHIN_SHALLOW_FORWARD_WEIGHT: f64 = 2.0;
 pub const CHIN_MIN_BELOW_MOUTH_MM: f64 = 20.0;
 /// Our step 9: the chin walk passes vertices whose mesh normal has `n_z >` this.
 pub const CHIN_WALK_MIN_NZ: f64 = 0.5;
+/// Our step 9, open mouths: the lips' profile at the corner line lying at least this far
+/// (mm, scanner depth) behind the upper lip's front is the mouth's cavity (or a hole), and the
+/// lower lip's top edge is where the profile below steps this far forward of the cavity.
+/// Closed lips meet in a crease: on the 34 real scans, a median 4.3 mm behind the upper lip,
+/// but up to 10.6 mm where the upper lip juts out; the step onto the lower lip is what
+/// separates an open mouth (it fires on none of them).
+pub const OPEN_MOUTH_STEP_MM: f64 = 8.0;
+/// Our step 9, open mouths: the lips' profile is the median depth of the vertices within this
+/// half-width (mm) of the mouth's centre line, in rows of half-height
+/// [`LIP_PROFILE_HALF_HEIGHT_MM`] 1 mm apart: two rows of a 2.4 mm scan at least.
+pub const LIP_PROFILE_HALF_WIDTH_MM: f64 = 6.0;
+/// See [`LIP_PROFILE_HALF_WIDTH_MM`].
+pub const LIP_PROFILE_HALF_HEIGHT_MM: f64 = 2.0;
+/// Our step 9, open mouths: the upper lip's front is the profile's most forward row up to this
+/// far above the corner line, mm (the upper vermilion is ~8–10 mm tall).
+pub const UPPER_LIP_REACH_MM: f64 = 12.0;
+/// Our step 9, open mouths: the lower lip's top edge is searched down to this far below the
+/// corner line, mm: a mouth opened 50 mm (about the widest) with the corners half-way.
+pub const LOWER_LIP_REACH_MM: f64 = 25.0;
 
 impl Detector<'_> {
     /// Step 9: walk down a 16 mm wide strip from below the lower lip (centred between the
@@ -58,7 +77,8 @@ impl Detector<'_> {
     /// biggest `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm
     /// above the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
     /// fitted one: the 5-ring fit smooths normals across the chin's rim and lets the walk
-    /// run on down the neck.
+    /// run on down the neck. Where the mouth is open ([`Self::open_mouth_lower_lip`]), the
+    /// lower lip's height is counted from its top edge, not from the corner line.
     pub(super) fn chin(&mut self, frame: &Frame, mid_u: f64, mouth_v: f64) -> usize {
         let lowest = -NOSE_TIP_TO_CHIN.max_mm - CHIN_WALK_MARGIN_MM;
         // Start below the lower lip (whose underside faces down and would end the walk).
@@ -96,7 +116,9 @@ impl Detector<'_> {
         };
         let at_limit = |v: usize| frame.uv(self.p(v)).y < lowest + CHIN_AT_LIMIT_MM;
         // The reached vertices below the lower lip ([`CHIN_MIN_BELOW_MOUTH_MM`]).
-        let below_lip = |v: &usize| frame.uv(self.p(*v)).y <= mouth_v - CHIN_MIN_BELOW_MOUTH_MM;
+        let lip_top_v =
+            (self.open_mouth_lower_lip(frame, mid_u, mouth_v)).map_or(mouth_v, |v| v.min(mouth_v));
+        let below_lip = |v: &usize| frame.uv(self.p(*v)).y <= lip_top_v - CHIN_MIN_BELOW_MOUTH_MM;
         let reached = (self.strip_walk(&key, band))
             .map(|r| r.into_iter().filter(below_lip).collect::<Vec<_>>())
             .filter(|r| !r.is_empty());
@@ -114,34 +136,155 @@ impl Detector<'_> {
             ),
         }
     }
+
+    /// Our step 9, open mouths: the height (face frame `v`, mm) of the lower lip's top edge,
+    /// or `None` where the mouth is closed. The lips' profile (median depth per row, see
+    /// [`LIP_PROFILE_HALF_WIDTH_MM`]) is open where, within 2 mm of the corner line, a row is
+    /// empty (a hole) or lies [`OPEN_MOUTH_STEP_MM`] behind the upper lip's front; going down
+    /// through such rows, the first row [`OPEN_MOUTH_STEP_MM`] in front of the deepest one
+    /// passed is the lower lip's top. A row that is neither ends the search (closed).
+    /// The paper's chin needs none of this: its lower lip never drops with the jaw, while an
+    /// open-mouthed laugh's lower lip lies 6–15 mm below the corner line on the benchmark.
+    fn open_mouth_lower_lip(&self, frame: &Frame, mid_u: f64, mouth_v: f64) -> Option<f64> {
+        let (top, bottom) = (mouth_v + UPPER_LIP_REACH_MM, mouth_v - LOWER_LIP_REACH_MM);
+        let h = LIP_PROFILE_HALF_HEIGHT_MM;
+        let strip: Vec<(f64, f64)> = (0..self.mesh.vertex_count())
+            .filter_map(|v| {
+                let (p, q) = (self.p(v), frame.uv(self.p(v)));
+                let inside = (q.x - mid_u).abs() <= LIP_PROFILE_HALF_WIDTH_MM
+                    && q.y <= top + h
+                    && q.y >= bottom - h;
+                inside.then_some((q.y, p.z))
+            })
+            .collect();
+        // The profile's depth at row `v`: the median over the row, `None` for an empty row.
+        let front = |v: f64| {
+            let mut z: Vec<f64> = (strip.iter())
+                .filter(|(y, _)| (y - v).abs() <= h)
+                .map(|&(_, z)| z)
+                .collect();
+            z.sort_by(f64::total_cmp);
+            (!z.is_empty()).then(|| z[z.len() / 2])
+        };
+        let rows: Vec<f64> = (0..)
+            .map(|i| top - i as f64)
+            .take_while(|&v| v >= bottom)
+            .collect();
+        let upper_lip_z = (rows.iter())
+            .filter(|&&v| v >= mouth_v)
+            .filter_map(|&v| front(v))
+            .max_by(f64::total_cmp)?;
+        let cavity = |z: Option<f64>| z.is_none_or(|z| z <= upper_lip_z - OPEN_MOUTH_STEP_MM);
+        let start = (rows.iter()).position(|&v| (v - mouth_v).abs() <= 2.0 && cavity(front(v)))?;
+        let mut deepest = f64::INFINITY;
+        for &v in &rows[start..] {
+            let z = front(v);
+            if z.is_some_and(|z| z >= deepest + OPEN_MOUTH_STEP_MM) {
+                return Some(v);
+            }
+            if !cavity(z) {
+                return None;
+            }
+            deepest = deepest.min(z.unwrap_or(f64::NEG_INFINITY));
+        }
+        None
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Mesh;
     use crate::landmarks::detector::TestSurface;
     use crate::test_support::grid;
     use glam::DVec3;
 
-    /// The chin of a profile surface (face frame: nose tip at the origin, y up, facing +z; the
-    /// mouth line at y = −50 mm): the chin's front at z = −20 mm down to y = −80 mm, then a
-    /// 3 mm-wide bend into an underside receding `degrees` from vertical, and a lower lip
-    /// pushed `lip_mm` forward of the chin's front 12 mm below the mouth line (a Gaussian
-    /// ridge, σ 4 mm); 60 mm wide, from y = −40 to −130 mm.
-    fn chin_of_profile(degrees: f64, lip_mm: f64) -> f64 {
-        let r = 3.0;
-        let slope = degrees.to_radians().tan();
-        let z = |y: f64| {
-            -20.0 - slope * r * ((-80.0 - y) / r).exp().ln_1p()
-                + lip_mm * (-(y + 62.0).powi(2) / 32.0).exp()
-        };
+    /// The chin and the open mouth's lower-lip edge of a profile surface `z(y)` (face frame:
+    /// nose tip at the origin, y up, facing +z; the mouth line at y = −50 mm), 60 mm wide, from
+    /// y = −30 to −130 mm, without the rows where `hole(y)`.
+    fn chin_of(z: impl Fn(f64) -> f64, hole: impl Fn(f64) -> bool) -> (f64, Option<f64>) {
         // The grid's corner (0, 0) lies 30 mm right of and 130 mm below the nose tip.
         let nose_tip = DVec3::new(30.0, 130.0, 0.0);
-        let surface = TestSurface::new(grid(61, 91, |_, y| z(y - nose_tip.y)));
+        let full = grid(61, 101, |_, y| z(y - nose_tip.y));
+        let keep: Vec<bool> = (full.positions_mm.iter())
+            .map(|p| !hole(p.y - nose_tip.y))
+            .collect();
+        let mut index = vec![u32::MAX; keep.len()];
+        let mut positions = Vec::new();
+        for (v, p) in full.positions_mm.iter().enumerate() {
+            if keep[v] {
+                index[v] = positions.len() as u32;
+                positions.push(*p);
+            }
+        }
+        let faces: Vec<[u32; 4]> = (0..100u32)
+            .flat_map(|j| (0..60u32).map(move |i| j * 61 + i))
+            .map(|v| [v, v + 1, v + 62, v + 61])
+            .filter(|f| f.iter().all(|&v| keep[v as usize]))
+            .map(|f| f.map(|v| index[v as usize]))
+            .collect();
+        let surface = TestSurface::new(Mesh::from_faces(positions, faces));
         let mut detector = surface.detector();
-        let v = detector.chin(&Frame::new(nose_tip, 0.0), 0.0, -50.0);
+        let frame = Frame::new(nose_tip, 0.0);
+        let lip = detector.open_mouth_lower_lip(&frame, 0.0, -50.0);
+        let v = detector.chin(&frame, 0.0, -50.0);
         assert!(detector.guessed.is_empty());
-        detector.p(v).y - nose_tip.y
+        (detector.p(v).y - nose_tip.y, lip)
+    }
+
+    /// The chin of a profile surface: the chin's front at z = −20 mm down to y = −80 mm, then a
+    /// 3 mm-wide bend into an underside receding `degrees` from vertical, and a lower lip
+    /// pushed `lip_mm` forward of the chin's front 12 mm below the mouth line (a Gaussian
+    /// ridge, σ 4 mm).
+    fn chin_of_profile(degrees: f64, lip_mm: f64) -> f64 {
+        let z =
+            |y: f64| bend(y, -80.0, degrees) - 20.0 + lip_mm * (-(y + 62.0).powi(2) / 32.0).exp();
+        let (chin, lip) = chin_of(z, |_| false);
+        assert_eq!(lip, None, "closed lips are not an open mouth");
+        chin
+    }
+
+    /// Depth (mm) of a 3 mm-wide bend at height `at` from a vertical front into an underside
+    /// receding `degrees` from vertical: 0 above the bend.
+    fn bend(y: f64, at: f64, degrees: f64) -> f64 {
+        let r = 3.0;
+        -degrees.to_radians().tan() * r * ((at - y) / r).exp().ln_1p()
+    }
+
+    /// An open-mouthed laugh's profile: the upper lip (z = −15 mm) above the mouth line, the
+    /// mouth's cavity 25 mm behind it from 5 above to 8 below the line, and below the cavity,
+    /// from y = −58 mm, a lower lip 20 mm in front of the chin, whose front recedes 1 mm in 2
+    /// down to its bend at y = −100 mm.
+    fn open_mouth(y: f64) -> f64 {
+        let lower_lip = 20.0 / (1.0 + (-(y + 75.0)).exp());
+        if y > -45.0 {
+            -15.0
+        } else if y > -58.0 {
+            -40.0
+        } else {
+            -20.0 + lower_lip - 0.5 * (-78.0 - y).max(0.0) + bend(y, -100.0, 55.0)
+        }
+    }
+
+    /// The lower lip of an open mouth, cavity scanned or a hole, is found at its top edge
+    /// (y = −58 mm), and the chin stays at the bend under the receding front even though the
+    /// lip, 25 mm below the mouth line, lies further down-and-forward (75 − 0 against
+    /// 100 − 31 mm). Counting the lower lip's height from the corner line put the chin on
+    /// the lip, at y = −72 mm, in both.
+    #[test]
+    fn an_open_mouths_lower_lip_is_not_the_chin() {
+        for hole in [false, true] {
+            let (chin, lip) = chin_of(open_mouth, |y| hole && (-57.0..-45.0).contains(&y));
+            let lip = lip.expect("open mouth");
+            assert!(
+                (lip + 58.0).abs() <= 2.0,
+                "hole {hole}: lip edge at {lip:.1}"
+            );
+            assert!(
+                (chin + 100.0).abs() <= 4.0,
+                "hole {hole}: chin at y = {chin:.1} mm, the bend at −100"
+            );
+        }
     }
 
     /// The chin is at the bend under the chin's front, whether the underside turns back

@@ -134,7 +134,9 @@
 //!    midline strip from the mouth along mesh edges through vertices whose mesh normal faces
 //!    the scanner; the chin is the vertex reached furthest down-and-forward, the tangent
 //!    point of a 45° line (the chin–neck depth jump stops the walk), at least a lower lip's
-//!    height below the mouth line ([`CHIN_MIN_BELOW_MOUTH_MM`]). Where that lies at the
+//!    height below the mouth line ([`CHIN_MIN_BELOW_MOUTH_MM`]), or below the lower lip's top
+//!    edge where the mouth is open (the lips' profile steps [`OPEN_MOUTH_STEP_MM`] forward
+//!    from the mouth's cavity or a hole, [`LOWER_LIP_REACH_MM`]). Where that lies at the
 //!    walk's lowest line ([`CHIN_AT_LIMIT_MM`]), the underside never turned back 45° (a chin
 //!    running into the neck) and the tangent point of a steeper line
 //!    ([`CHIN_SHALLOW_FORWARD_WEIGHT`]) is taken.
@@ -176,7 +178,8 @@ pub use cheeks::{CHEEK_MAX_DZ, CHEEK_STRIP_GAP_MM, CHEEK_STRIP_HALF_MM};
 pub use chin::{
     CHIN_AT_LIMIT_MM, CHIN_FORWARD_WEIGHT, CHIN_MAX_GRAD_XY, CHIN_MIN_BELOW_MOUTH_MM, CHIN_MIN_S,
     CHIN_SHALLOW_FORWARD_WEIGHT, CHIN_WALK_MARGIN_MM, CHIN_WALK_MIN_NZ, CHIN_WALK_SEED_BAND_MM,
-    CHIN_WALK_START_BELOW_MOUTH_MM,
+    CHIN_WALK_START_BELOW_MOUTH_MM, LIP_PROFILE_HALF_HEIGHT_MM, LIP_PROFILE_HALF_WIDTH_MM,
+    LOWER_LIP_REACH_MM, OPEN_MOUTH_STEP_MM, UPPER_LIP_REACH_MM,
 };
 pub use consensus::{CONSENSUS_KEEP_MM, CONSENSUS_TILT_DEG, UNSTABLE_SPREAD_MM};
 pub use descriptors::{
