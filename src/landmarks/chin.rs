@@ -143,8 +143,9 @@ impl Detector<'_> {
     /// empty (a hole) or lies [`OPEN_MOUTH_STEP_MM`] behind the upper lip's front; going down
     /// through such rows, the first row [`OPEN_MOUTH_STEP_MM`] in front of the deepest one
     /// passed is the lower lip's top. A row that is neither ends the search (closed).
-    /// The paper's chin needs none of this: its lower lip never drops with the jaw, while an
-    /// open-mouthed laugh's lower lip lies 6–15 mm below the corner line on the benchmark.
+    /// Our addition: the lower lip's height ([`CHIN_MIN_BELOW_MOUTH_MM`]) is measured from
+    /// where the lips meet, and an open-mouthed laugh's lower lip lies 6–15 mm below the
+    /// corner line on the benchmark.
     fn open_mouth_lower_lip(&self, frame: &Frame, mid_u: f64, mouth_v: f64) -> Option<f64> {
         let (top, bottom) = (mouth_v + UPPER_LIP_REACH_MM, mouth_v - LOWER_LIP_REACH_MM);
         let h = LIP_PROFILE_HALF_HEIGHT_MM;
