@@ -252,6 +252,32 @@ mod tests {
         -degrees.to_radians().tan() * r * ((at - y) / r).exp().ln_1p()
     }
 
+    /// Closed lips with a hole where they meet (a dark lip line the scanner missed): a hole
+    /// up to 4 mm tall leaves no profile row empty, so the mouth is closed; a 6 mm hole reads
+    /// as open, with the lower lip's edge within 2 mm of the hole's lower end (y = −53 mm, the
+    /// rows being 4 mm tall). Either way the chin stays at the bend.
+    #[test]
+    fn a_hole_where_closed_lips_meet_leaves_the_chin() {
+        let closed = |y: f64| bend(y, -80.0, 55.0) - 20.0;
+        for (half_mm, edge) in [(1.5, None), (3.0, Some(-53.0))] {
+            let (chin, lip) = chin_of(closed, |y| (y + 50.0).abs() < half_mm);
+            match (lip, edge) {
+                (None, None) => {}
+                (Some(lip), Some(edge)) => {
+                    assert!(
+                        (lip - edge).abs() <= 2.0,
+                        "hole ±{half_mm}: edge at {lip:.1}"
+                    )
+                }
+                _ => panic!("hole ±{half_mm} mm: lip edge {lip:?}, expected {edge:?}"),
+            }
+            assert!(
+                (chin + 80.0).abs() <= 4.0,
+                "hole ±{half_mm}: chin at {chin:.1}"
+            );
+        }
+    }
+
     /// An open-mouthed laugh's profile: the upper lip (z = −15 mm) above the mouth line, the
     /// mouth's cavity 25 mm behind it from 5 above to 8 below the line, and below the cavity,
     /// from y = −58 mm, a lower lip 20 mm in front of the chin, whose front recedes 1 mm in 2
