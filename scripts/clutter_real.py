@@ -63,6 +63,13 @@ def detect(binary, obj, out_json):
     return json.load(open(out_json)), None
 
 
+def baseline(binary, scan, out_obj, out_json):
+    """`scan` written as OBJ (`facesynth convert`, the copies' starting point) and its points
+    detected: (report, error) as `detect`."""
+    subprocess.run([binary, "convert", scan, out_obj], check=True, capture_output=True)
+    return detect(binary, out_obj, out_json)
+
+
 def real_scans(data="../shared/data"):
     """(stem, path) of every real scan in `data`, sorted by path, as `scripts/real_landmarks.sh`
     names them (the point cloud of cara1_frontal1 shares its stem with the VRML scan of the same
@@ -86,8 +93,7 @@ def main():
         if "izquierda" in stem or "derecha" in stem:
             continue  # profiles: no torso or hair geometry to stand in for
         base = f"{out}/{stem}.obj"
-        subprocess.run([binary, "convert", scan, base], check=True, capture_output=True)
-        ref, err = detect(binary, base, f"{out}/{stem}.json")
+        ref, err = baseline(binary, scan, base, f"{out}/{stem}.json")
         if ref is None:
             print(f"{stem}: baseline failed: {err}")
             continue

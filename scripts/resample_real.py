@@ -23,7 +23,7 @@ import statistics
 import subprocess
 import sys
 
-from clutter_real import ANATOMICAL, detect, real_scans
+from clutter_real import ANATOMICAL, baseline, detect, real_scans
 
 
 def read_obj(path):
@@ -100,8 +100,7 @@ def main():
     moved = {name: [] for name in copies}
     for stem, scan in real_scans():
         base = f"{out}/{stem}.obj"
-        subprocess.run([binary, "convert", scan, base], check=True, capture_output=True)
-        ref, _ = detect(binary, base, f"{out}/plain/{stem}.json")
+        ref, _ = baseline(binary, scan, base, f"{out}/plain/{stem}.json")
         if ref is None:
             print(f"{stem}: baseline failed")
             continue

@@ -158,28 +158,30 @@ impl Detector<'_> {
                 inside.then_some((q.y, p.z))
             })
             .collect();
-        // The profile's depth at row `v`: the median over the row, `None` for an empty row.
-        let front = |v: f64| {
-            let mut z: Vec<f64> = (strip.iter())
-                .filter(|(y, _)| (y - v).abs() <= h)
-                .map(|&(_, z)| z)
-                .collect();
-            z.sort_by(f64::total_cmp);
-            (!z.is_empty()).then(|| z[z.len() / 2])
-        };
         let rows: Vec<f64> = (0..)
             .map(|i| top - i as f64)
             .take_while(|&v| v >= bottom)
             .collect();
-        let upper_lip_z = (rows.iter())
-            .filter(|&&v| v >= mouth_v)
-            .filter_map(|&v| front(v))
+        // The profile's depth at each row: the median over the row, `None` for an empty row.
+        let profile: Vec<Option<f64>> = (rows.iter())
+            .map(|&v| {
+                let mut z: Vec<f64> = (strip.iter())
+                    .filter(|(y, _)| (y - v).abs() <= h)
+                    .map(|&(_, z)| z)
+                    .collect();
+                z.sort_by(f64::total_cmp);
+                (!z.is_empty()).then(|| z[z.len() / 2])
+            })
+            .collect();
+        let upper_lip_z = (rows.iter().zip(&profile))
+            .filter(|&(&v, _)| v >= mouth_v)
+            .filter_map(|(_, &z)| z)
             .max_by(f64::total_cmp)?;
         let cavity = |z: Option<f64>| z.is_none_or(|z| z <= upper_lip_z - OPEN_MOUTH_STEP_MM);
-        let start = (rows.iter()).position(|&v| (v - mouth_v).abs() <= 2.0 && cavity(front(v)))?;
+        let start = (rows.iter().zip(&profile))
+            .position(|(&v, &z)| (v - mouth_v).abs() <= 2.0 && cavity(z))?;
         let mut deepest = f64::INFINITY;
-        for &v in &rows[start..] {
-            let z = front(v);
+        for (&v, &z) in rows.iter().zip(&profile).skip(start) {
             if z.is_some_and(|z| z >= deepest + OPEN_MOUTH_STEP_MM) {
                 return Some(v);
             }
@@ -195,7 +197,6 @@ impl Detector<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Mesh;
     use crate::landmarks::detector::TestSurface;
     use crate::test_support::grid;
     use glam::DVec3;
@@ -206,25 +207,12 @@ mod tests {
     fn chin_of(z: impl Fn(f64) -> f64, hole: impl Fn(f64) -> bool) -> (f64, Option<f64>) {
         // The grid's corner (0, 0) lies 30 mm right of and 130 mm below the nose tip.
         let nose_tip = DVec3::new(30.0, 130.0, 0.0);
-        let full = grid(61, 101, |_, y| z(y - nose_tip.y));
-        let keep: Vec<bool> = (full.positions_mm.iter())
+        let mut mesh = grid(61, 101, |_, y| z(y - nose_tip.y));
+        let keep: Vec<bool> = (mesh.positions_mm.iter())
             .map(|p| !hole(p.y - nose_tip.y))
             .collect();
-        let mut index = vec![u32::MAX; keep.len()];
-        let mut positions = Vec::new();
-        for (v, p) in full.positions_mm.iter().enumerate() {
-            if keep[v] {
-                index[v] = positions.len() as u32;
-                positions.push(*p);
-            }
-        }
-        let faces: Vec<[u32; 4]> = (0..100u32)
-            .flat_map(|j| (0..60u32).map(move |i| j * 61 + i))
-            .map(|v| [v, v + 1, v + 62, v + 61])
-            .filter(|f| f.iter().all(|&v| keep[v as usize]))
-            .map(|f| f.map(|v| index[v as usize]))
-            .collect();
-        let surface = TestSurface::new(Mesh::from_faces(positions, faces));
+        mesh.retain_vertices(&keep);
+        let surface = TestSurface::new(mesh);
         let mut detector = surface.detector();
         let frame = Frame::new(nose_tip, 0.0);
         let lip = detector.open_mouth_lower_lip(&frame, 0.0, -50.0);

@@ -144,13 +144,13 @@
 //! # Accuracy and speed
 //!
 //! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 38–40 of 40
-//! neutral scans have all scored points within 10 mm (fourteen seeds; 40 on the two made after the
-//! last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an independent
-//! detector (`scripts/real_landmarks.sh`; of the seven others, five are flagged suspect: the two
-//! profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as they do sampled twice as densely
-//! or at 3 mm (`scripts/resample_real.py`). Denoise + detection, release build on one core, median
-//! (`bench-landmarks --repeat 15`, stop 52): 95 + 177 ms (cara1_sonrisa), 30 + 123 ms
-//! (cara1_frontal1). Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
+//! neutral scans have all scored points within 10 mm (sixteen seeds; 38 and 40 on the two made
+//! after the last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an
+//! independent detector (`scripts/real_landmarks.sh`; of the seven others, five are flagged
+//! suspect: the two profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as they do
+//! sampled twice as densely or at 3 mm (`scripts/resample_real.py`). Denoise + detection,
+//! release build on one core, median (`bench-landmarks --repeat 9`, stop 53): 95 + 176 ms
+//! (cara1_sonrisa), 30 + 121 ms (cara1_frontal1). Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
 
 pub mod eval;
 pub mod localise;
@@ -462,31 +462,40 @@ pub fn detect_with_descriptors(
     params.validate()?;
     let topology = Topology::new(mesh);
     let n = mesh.vertex_count();
-    let Some(localise_params) = params.localise else {
-        let sampling = params.descriptor_sampling(mesh, None);
-        let desc =
-            curvature::compute_with_topology(mesh, &topology, &params.curvature_with(sampling))?;
-        let mut report = Detector::new(mesh, &topology, &desc, params, None)
-            .run()?
-            .into_report();
-        report.suspect = suspect_reasons(None, &report, &localise::LocaliseParams::default());
-        report.descriptors = Some(sampling);
-        return Ok((report, desc));
-    };
-    if n < MIN_FACE_VERTICES {
-        return Err(Error::algorithm(
-            "landmarks: facial segmentation",
-            format!("the scan has only {n} vertices; a face needs at least {MIN_FACE_VERTICES}"),
-        ));
-    }
     // The finalists the face-likeness cannot tell apart (within `PLAUSIBILITY_TIE` of the
     // best) each get the steps; the one whose points pass the most anatomical checks wins.
-    let finalists = localise::localise_finalists(mesh, &localise_params)?;
+    let located = match params.localise {
+        None => None,
+        Some(_) if n < MIN_FACE_VERTICES => {
+            return Err(Error::algorithm(
+                "landmarks: facial segmentation",
+                format!(
+                    "the scan has only {n} vertices; a face needs at least {MIN_FACE_VERTICES}"
+                ),
+            ));
+        }
+        Some(localise_params) => Some((
+            localise_params,
+            localise::localise_finalists(mesh, &localise_params)?,
+        )),
+    };
     // The descriptors' rings follow the sampling of the face (about the best-ranked fit's nose
     // tip), not of a torso or hair cap sampled otherwise.
-    let sampling = params.descriptor_sampling(mesh, Some(finalists[0].0.nose_tip_in_scan));
+    let around = (located.as_ref()).map(|(_, finalists)| finalists[0].0.nose_tip_in_scan);
+    let sampling = params.descriptor_sampling(mesh, around);
     let desc = curvature::compute_with_topology(mesh, &topology, &params.curvature_with(sampling))?;
-    let mut report = detect_located(mesh, &topology, &desc, params, &localise_params, finalists)?;
+    let mut report = match located {
+        None => {
+            let mut report = Detector::new(mesh, &topology, &desc, params, None)
+                .run()?
+                .into_report();
+            report.suspect = suspect_reasons(None, &report, &localise::LocaliseParams::default());
+            report
+        }
+        Some((localise_params, finalists)) => {
+            detect_located(mesh, &topology, &desc, params, &localise_params, finalists)?
+        }
+    };
     report.descriptors = Some(sampling);
     Ok((report, desc))
 }
