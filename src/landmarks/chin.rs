@@ -148,31 +148,10 @@ impl Detector<'_> {
     /// corner line on the benchmark.
     fn open_mouth_lower_lip(&self, frame: &Frame, mid_u: f64, mouth_v: f64) -> Option<f64> {
         let (top, bottom) = (mouth_v + UPPER_LIP_REACH_MM, mouth_v - LOWER_LIP_REACH_MM);
-        let h = LIP_PROFILE_HALF_HEIGHT_MM;
-        let strip: Vec<(f64, f64)> = (0..self.mesh.vertex_count())
-            .filter_map(|v| {
-                let (p, q) = (self.p(v), frame.uv(self.p(v)));
-                let inside = (q.x - mid_u).abs() <= LIP_PROFILE_HALF_WIDTH_MM
-                    && q.y <= top + h
-                    && q.y >= bottom - h;
-                inside.then_some((q.y, p.z))
-            })
-            .collect();
-        let rows: Vec<f64> = (0..)
-            .map(|i| top - i as f64)
-            .take_while(|&v| v >= bottom)
-            .collect();
-        // The profile's depth at each row: the median over the row, `None` for an empty row.
-        let profile: Vec<Option<f64>> = (rows.iter())
-            .map(|&v| {
-                let mut z: Vec<f64> = (strip.iter())
-                    .filter(|(y, _)| (y - v).abs() <= h)
-                    .map(|&(_, z)| z)
-                    .collect();
-                z.sort_by(f64::total_cmp);
-                (!z.is_empty()).then(|| z[z.len() / 2])
-            })
-            .collect();
+        let (rows, profile): (Vec<f64>, Vec<Option<f64>>) = self
+            .lips_profile(frame, mid_u, top, bottom)
+            .into_iter()
+            .unzip();
         let upper_lip_z = (rows.iter().zip(&profile))
             .filter(|&(&v, _)| v >= mouth_v)
             .filter_map(|(_, &z)| z)
@@ -191,6 +170,41 @@ impl Detector<'_> {
             deepest = deepest.min(z.unwrap_or(f64::NEG_INFINITY));
         }
         None
+    }
+
+    /// The lips' profile along the mouth's centre line `mid_u` (face frame, mm): per row from
+    /// `top` down to `bottom`, 1 mm apart, the row's height and the median depth (scan `z`) of
+    /// the vertices within [`LIP_PROFILE_HALF_WIDTH_MM`] of the line and
+    /// [`LIP_PROFILE_HALF_HEIGHT_MM`] of the row, `None` for an empty row (a hole).
+    pub(super) fn lips_profile(
+        &self,
+        frame: &Frame,
+        mid_u: f64,
+        top: f64,
+        bottom: f64,
+    ) -> Vec<(f64, Option<f64>)> {
+        let h = LIP_PROFILE_HALF_HEIGHT_MM;
+        let strip: Vec<(f64, f64)> = (0..self.mesh.vertex_count())
+            .filter_map(|v| {
+                let (p, q) = (self.p(v), frame.uv(self.p(v)));
+                let inside = (q.x - mid_u).abs() <= LIP_PROFILE_HALF_WIDTH_MM
+                    && q.y <= top + h
+                    && q.y >= bottom - h;
+                inside.then_some((q.y, p.z))
+            })
+            .collect();
+        (0..)
+            .map(|i| top - i as f64)
+            .take_while(|&v| v >= bottom)
+            .map(|v| {
+                let mut z: Vec<f64> = (strip.iter())
+                    .filter(|(y, _)| (y - v).abs() <= h)
+                    .map(|&(_, z)| z)
+                    .collect();
+                z.sort_by(f64::total_cmp);
+                (v, (!z.is_empty()).then(|| z[z.len() / 2]))
+            })
+            .collect()
     }
 }
 

@@ -118,7 +118,9 @@
 //! 6. **Mouth corners** (`mouth.rs`). As the paper's last stage: in a box per side from
 //!    Table 2's nose-tip to mouth distance (starting 9 mm below the nose corners) and the
 //!    outer eye corners, the biggest `S < 0.25` region; the corner (near the region's median
-//!    height) is its most lateral vertex (the end of the lip line).
+//!    height) is its most lateral vertex (the end of the lip line). Ours: a region that comes
+//!    nowhere within [`MOUTH_CORNER_MAX_BEHIND_LIPS_MM`] of the lips' front is a cheek drawn
+//!    in beside puckered lips, and does not compete.
 //! 7. **Cheek borders** (`cheeks.rs`). Paper: `|∂/∂z| ≤ 0.4` in a box per side between mouth
 //!    and eyes, outside the outer eye corners; centroid of the biggest region (snapped to the
 //!    surface). Here: at the nose tip's height, walking out from the outer eye corner in
@@ -195,7 +197,10 @@ pub use eyes::{
 };
 pub use fissure::FISSURE_SMOOTHING_MM;
 pub use forehead::{FOREHEAD_MAX_CURVEDNESS_PER_MM, FOREHEAD_MIN_DZ};
-pub use mouth::{MOUTH_BELOW_NOSE_CORNERS_MM, MOUTH_CORNER_LINE_WEIGHT, MOUTH_CORNER_MAX_S};
+pub use mouth::{
+    MOUTH_BELOW_NOSE_CORNERS_MM, MOUTH_CORNER_LINE_WEIGHT, MOUTH_CORNER_MAX_BEHIND_LIPS_MM,
+    MOUTH_CORNER_MAX_S,
+};
 pub use nose::{NOSE_PRIOR_REACH_MM, NOSE_TIP_MAX_SLOPE, NOSE_TIP_REACH_MM};
 pub use nose_corners::{
     NOSE_CORNER_CONCAVE_MAX_S, NOSE_CORNER_MAX_DZ, NOSE_CORNER_MIN_DX, NOSE_CORNER_OFFSET_MM,
