@@ -35,11 +35,6 @@ pub const FISSURE_MAX_RISE_MM: f64 = 1.0;
 /// (towards the nose bridge), and on real scans the trenches medial of it were the hollow
 /// beside the nose.
 pub const FISSURE_MAX_MEDIAL_MM: f64 = 1.0;
-/// … unless it lies at least this far below it (mm, face frame), when it may lie as far
-/// medial: the hollow beside the nose bridge lies medial of the canthus and *above* it (its
-/// pit ~4 mm medial and up), so a trench this far below the pit is the lid fissure, and the
-/// pit was in the upper lid's sulcus (deep-set eyes on real scans).
-pub const FISSURE_LOW_END_MM: f64 = 4.0;
 /// How much less symmetric than the most symmetric choice a pair of refined inner corners
 /// may be (mm; see `inner_eyes_at_fissures`).
 pub const FISSURE_SYMMETRY_SLACK_MM: f64 = 1.5;
@@ -195,8 +190,7 @@ impl Detector<'_> {
     /// [`FISSURE_DEPTH_BAND_MM`] of its deepest z (its medial end otherwise climbs the nose's
     /// side wall) the most medial is the corner. No trench, or a corner more than
     /// [`FISSURE_MAX_SHIFT_MM`] from `near`, more than [`FISSURE_MAX_MEDIAL_MM`] medial of it
-    /// (or [`FISSURE_LOW_END_MM`] where it lies that far below it) or more than
-    /// [`FISSURE_MAX_RISE_MM`] in front of it: `near` stays.
+    /// or more than [`FISSURE_MAX_RISE_MM`] in front of it: `near` stays.
     fn inner_eye_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
         let rel = self.lateral_from(frame, near, side);
         let Some(trench) =
@@ -216,8 +210,7 @@ impl Detector<'_> {
             .min_by(|&a, &b| rel(a).x.total_cmp(&rel(b).x))
             .unwrap_or(near);
         if rel(corner).length() <= FISSURE_MAX_SHIFT_MM
-            && (rel(corner).x >= -FISSURE_MAX_MEDIAL_MM
-                || (rel(corner).y <= -FISSURE_LOW_END_MM && rel(corner).x >= -FISSURE_LOW_END_MM))
+            && rel(corner).x >= -FISSURE_MAX_MEDIAL_MM
             && self.p(corner).z <= self.p(near).z + FISSURE_MAX_RISE_MM
         {
             corner
@@ -243,14 +236,9 @@ mod tests {
     /// 16 mm beside the midline, 33 mm up (the hollows beside the nose bridge). Returns the
     /// refined right and left corners, face frame.
     fn refined(fissure_v: f64) -> (DVec2, DVec2) {
-        refined_from(fissure_v, 20.0)
-    }
-
-    /// As [`refined`], with the groove's medial end `medial_u` mm right of the midline.
-    fn refined_from(fissure_v: f64, medial_u: f64) -> (DVec2, DVec2) {
         let groove = |u: f64, v: f64| {
             // How far beyond the groove's ends, mm.
-            let beyond = (u + medial_u).max(0.0) + (-32.0 - u).max(0.0);
+            let beyond = (u + 20.0).max(0.0) + (-32.0 - u).max(0.0);
             -2.0 * (-(v - fissure_v).powi(2) / 1.28).exp() * (-beyond.powi(2)).exp()
         };
         let surface = TestSurface::new(grid(101, 61, |x, y| groove(x - TIP.x, y - TIP.y)));
@@ -279,24 +267,5 @@ mod tests {
             "an end above the pit: the pit stays"
         );
         assert_eq!(l, DVec2::new(16.0, 33.0));
-    }
-
-    /// A fissure whose medial end lies 3 mm medial of the pit moves the corner only where it
-    /// runs well below the pit (6 mm: the pit lay in the upper lid's sulcus); at the pit's
-    /// height (1 mm below) such a trench is the hollow beside the nose bridge.
-    #[test]
-    fn a_fissure_well_below_the_pit_may_end_medial_of_it() {
-        let (r, l) = refined_from(27.0, 13.0);
-        assert!(
-            (r - DVec2::new(-13.0, 27.0)).length() <= 1.5,
-            "right corner at {r}, the fissure's medial end at (-13, 27)"
-        );
-        assert_eq!(l, DVec2::new(16.0, 33.0), "the left pit has no fissure");
-        let (r, _) = refined_from(32.0, 13.0);
-        assert_eq!(
-            r,
-            DVec2::new(-16.0, 33.0),
-            "3 mm medial at the pit's height: it stays"
-        );
     }
 }

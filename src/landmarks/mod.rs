@@ -87,9 +87,8 @@
 //!    is replaced by a pair of the next-biggest regions that agrees with it (a lid crease had
 //!    outgrown the canthus on real scans). Then each corner moves to the medial end of its
 //!    lid fissure, a narrow trench found in the depth relief (depth minus a 2 mm Gaussian
-//!    mean of the surroundings), where that end is within 8 mm, at most 1 mm medial (up to
-//!    [`FISSURE_LOW_END_MM`] where it lies that far below the pit, which then lay in the upper
-//!    lid's sulcus) and 1 mm in front of the pit and keeps the pair symmetric: the biggest concave region is often
+//!    mean of the surroundings), where that end is within 8 mm, at most 1 mm medial and 1 mm
+//!    in front of the pit and keeps the pair symmetric: the biggest concave region is often
 //!    the hollow between nose bridge and eye, whose pit lies ~4 mm medial and up of the
 //!    canthus. An end found on one side only moves its corner whatever the symmetry if it
 //!    lies at most [`FISSURE_LONE_MAX_UP_MM`] above the pit (both pits err alike, so their
@@ -191,10 +190,10 @@ pub use descriptors::{
 };
 pub use detector::FEATURE_MIN_CURVEDNESS_PER_MM;
 pub use eyes::{
-    FISSURE_BOX_MM, FISSURE_DEPTH_BAND_MM, FISSURE_LONE_MAX_UP_MM, FISSURE_LOW_END_MM,
-    FISSURE_MAX_MEDIAL_MM, FISSURE_MAX_RISE_MM, FISSURE_MAX_SHIFT_MM, FISSURE_MIN_DEPTH_MM,
-    FISSURE_SYMMETRY_SLACK_MM, INNER_EYE_CANDIDATE_REGIONS, INNER_EYE_MAX_S,
-    INNER_EYE_ROLL_ACCEPT_DEG, INNER_EYE_ROLL_TOLERANCE_DEG,
+    FISSURE_BOX_MM, FISSURE_DEPTH_BAND_MM, FISSURE_LONE_MAX_UP_MM, FISSURE_MAX_MEDIAL_MM,
+    FISSURE_MAX_RISE_MM, FISSURE_MAX_SHIFT_MM, FISSURE_MIN_DEPTH_MM, FISSURE_SYMMETRY_SLACK_MM,
+    INNER_EYE_CANDIDATE_REGIONS, INNER_EYE_MAX_S, INNER_EYE_ROLL_ACCEPT_DEG,
+    INNER_EYE_ROLL_TOLERANCE_DEG,
 };
 pub use fissure::FISSURE_SMOOTHING_MM;
 pub use forehead::{FOREHEAD_MAX_CURVEDNESS_PER_MM, FOREHEAD_MIN_DZ};
