@@ -47,7 +47,8 @@ impl LandmarkParams {
     /// [`SPACING_RADIUS_MM`] of `around` (the located nose tip; the whole mesh where `None` or
     /// where no edge lies there), within [`MIN_DESCRIPTOR_RINGS`]..=[`MAX_DESCRIPTOR_RINGS`].
     /// The same surface sampled twice as densely gets twice the rings (measured on the 34
-    /// real scans split 1 → 4 and clustered at 3 mm: docs/measurements.md, stop 52).
+    /// real scans split 1 → 4 and clustered at 3 mm: docs/measurements.md, "descriptor reach
+    /// in millimetres").
     pub fn curvature_for(&self, mesh: &Mesh, around: Option<glam::DVec3>) -> CurvatureParams {
         self.curvature_with(self.descriptor_sampling(mesh, around))
     }

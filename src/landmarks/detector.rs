@@ -238,7 +238,18 @@ impl Detector<'_> {
 
     /// The largest region of `mask`, if any.
     pub(super) fn biggest(&self, mask: &[bool]) -> Option<Vec<u32>> {
-        self.regions(mask).into_iter().max_by_key(|r| r.len())
+        self.biggest_where(mask, |_| true)
+    }
+
+    /// The largest region of `mask` for which `keep` holds, if any.
+    pub(super) fn biggest_where(
+        &self,
+        mask: &[bool],
+        keep: impl Fn(&[u32]) -> bool,
+    ) -> Option<Vec<u32>> {
+        (self.regions(mask).into_iter())
+            .filter(|r| keep(r))
+            .max_by_key(|r| r.len())
     }
 
     /// Mask of the vertices inside `b` (face frame) where `pred(v)` holds.

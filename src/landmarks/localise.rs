@@ -412,7 +412,8 @@ fn nose_candidates(mesh: &Mesh, face_from_scan: DMat3, params: &LocaliseParams) 
     // front, and the candidate is that cell's front-most vertex: the local maximum of depth,
     // which lies where it lies however the cells fall. A cell centre is up to 2 mm off it and
     // moves with the scan's bounds (a torso or a hair cap far from the face), and fits started
-    // 3 mm apart can settle on different parts of a face (docs/measurements.md, stop 51).
+    // 3 mm apart can settle on different parts of a face (docs/measurements.md, "Nose
+    // candidates at local maxima of depth").
     let climb = |mut k: usize| loop {
         let (i, j) = (k % nx, k / nx);
         let mut best = k;

@@ -145,14 +145,11 @@
 //!
 //! # Accuracy and speed
 //!
-//! Synthetic benchmark ([`eval`], `facesynth eval-landmarks`; 20 subjects per seed): 38–40 of 40
-//! neutral scans have all scored points within 10 mm (nineteen seeds; 39 on seed 373, made
-//! after the last change). Real scans in `../shared/data`: 27 of 34 agree within 12 mm with an
-//! independent detector (`scripts/real_landmarks.sh`; of the seven others, five are flagged
-//! suspect: the two profiles, cara46_frontal1, cara9_frontal2 and pol_003-001), as they do
-//! sampled twice as densely or at 3 mm (`scripts/resample_real.py`). Denoise + detection,
-//! release build on one core, median (`bench-landmarks --repeat 9`, stop 53): 95 + 176 ms
-//! (cara1_sonrisa), 30 + 121 ms (cara1_frontal1). Figures, how to reproduce them, and what was tried: `docs/measurements.md`.
+//! Measured on the synthetic benchmark with ground truth ([`eval`], `facesynth
+//! eval-landmarks`), on the real scans in `../shared/data` against an independent detector
+//! (`scripts/real_landmarks.sh`, with cluttered and resampled copies: `scripts/clutter_real.py`,
+//! `scripts/resample_real.py`) and for speed with `facesynth bench-landmarks`. The figures, the
+//! commands that reproduce them and what was tried: `docs/measurements.md` and README.
 
 pub mod eval;
 pub mod localise;
@@ -575,11 +572,11 @@ struct Scan<'a> {
 /// read depth along (measured: a flat patch 1 m beside cara1_abajo moved its inner eye corner 5.7
 /// mm; turned 45°, 133 mm). The coverage sphere alone let a separate surface within the face's
 /// radius count (a torso 40 mm below the chin moved cara1_abajo's mouth corner 2.7 mm and
-/// cara5_gesto's nose tip 3.1 mm; docs/measurements.md, stop 52). It is taken about the best-ranked
-/// finalist and serves every finalist: about each finalist's own face, a face located on the chin
-/// and pitched 33° came with a view that agreed with it and won (generated risa scans, 65 mm off);
-/// over all finalists together, the estimate followed which finalists tied, and a rotated copy's
-/// forehead moved 6.6 mm.
+/// cara5_gesto's nose tip 3.1 mm; docs/measurements.md, "the line of sight from the face's own
+/// surface"). It is taken about the best-ranked finalist and serves every finalist: about each
+/// finalist's own face, a face located on the chin and pitched 33° came with a view that agreed
+/// with it and won (generated risa scans, 65 mm off); over all finalists together, the estimate
+/// followed which finalists tied, and a rotated copy's forehead moved 6.6 mm.
 fn face_normal_sum(
     mesh: &Mesh,
     topology: &Topology,
@@ -686,9 +683,9 @@ fn yaw_from_line_of_sight(normal_sum: glam::DVec3, located: glam::DMat3) -> f64 
 /// A detected nose tip further than this (mm, across the face) from the nose tip of the
 /// generic face's fit that located the face gets a warning: the fit lies on another part of the
 /// face (the steps may still find the right points), and the orientation figures are that
-/// fit's (docs/measurements.md, stop 50). The width of [`localise::Localisation::coverage`]'s
-/// fall from the whole face to nothing ([`localise::COVER_TAPER_MM`]): a fit off by more no
-/// longer covers the same face.
+/// fit's (docs/measurements.md, "Where the generic face's fit and the detected points part").
+/// The width of [`localise::Localisation::coverage`]'s fall from the whole face to nothing
+/// ([`localise::COVER_TAPER_MM`]): a fit off by more no longer covers the same face.
 pub const FIT_NOSE_TIP_WARN_MM: f64 = localise::COVER_TAPER_MM;
 
 /// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have

@@ -43,25 +43,21 @@ impl Detector<'_> {
         let t = NOSE_TIP_TO_MOUTH;
         let ur = frame.uv(self.p(outer_r)).x;
         let ul = frame.uv(self.p(outer_l)).x;
+        let bottom = -t.max_mm - 6.0;
         // The lips' front: the most forward row of the lips' profile below the nose.
-        let behind_limit_mm = (self
-            .lips_profile(frame, 0.0, top, -t.max_mm - 6.0)
-            .into_iter())
-        .filter_map(|(_, z)| z)
-        .max_by(f64::total_cmp)
-        .map_or(f64::NEG_INFINITY, |z| z - MOUTH_CORNER_MAX_BEHIND_LIPS_MM);
+        let behind_limit_mm = (self.lips_profile(frame, 0.0, top, bottom).into_iter())
+            .filter_map(|(_, z)| z)
+            .max_by(f64::total_cmp)
+            .map_or(f64::NEG_INFINITY, |z| z - MOUTH_CORNER_MAX_BEHIND_LIPS_MM);
         let mut out = [0usize; 2];
         for (k, side) in [-1.0, 1.0].into_iter().enumerate() {
             let lim = if side < 0.0 { -ur } else { ul };
-            let bx = side_box(side, (6.0, lim.clamp(20.0, 45.0)), (-t.max_mm - 6.0, top));
+            let bx = side_box(side, (6.0, lim.clamp(20.0, 45.0)), (bottom, top));
             let mask = self.box_mask(frame, bx, |v| self.desc.shape_index[v] < MOUTH_CORNER_MAX_S);
             // A region that nowhere comes within the limit of the lips' front is the cheek.
             let reaches_lips =
-                |r: &Vec<u32>| r.iter().any(|&v| self.p(v as usize).z >= behind_limit_mm);
-            let biggest = (self.regions(&mask).into_iter())
-                .filter(reaches_lips)
-                .max_by_key(|r| r.len());
-            out[k] = match biggest {
+                |r: &[u32]| r.iter().any(|&v| self.p(v as usize).z >= behind_limit_mm);
+            out[k] = match self.biggest_where(&mask, reaches_lips) {
                 Some(r) => {
                     let mut vs: Vec<f64> =
                         r.iter().map(|&v| frame.uv(self.p(v as usize)).y).collect();
