@@ -33,7 +33,8 @@
 //!    as high as the right one on an unusual face) are refitted on the surface with a dense
 //!    template (every 3rd vertex) and scored again, best first ([`localise_finalists`]); the
 //!    first is the face, unless another within `PLAUSIBILITY_TIE` of it gives the feature steps
-//!    an anatomically more plausible result (`super::detect`).
+//!    an anatomically more plausible result, or the first's result is suspect and a face-like
+//!    finalist ranked lower gives a more plausible one (`super::detect`).
 //!
 //! The winning fit gives the face frame: the rotation that turns the scan so that the face looks
 //! along +z with its forehead up ([`Localisation::face_from_scan`]). Differences from the
@@ -171,7 +172,7 @@ const SCANNER_FRAME_PRIOR: f64 = 0.1;
 const FINALISTS: usize = 3;
 /// Two fits are the same where their nose tips lie within this distance, mm, and their viewing
 /// directions within ~18° (cosine).
-const DISTINCT_FIT_MM: f64 = 10.0;
+pub const DISTINCT_FIT_MM: f64 = 10.0;
 const DISTINCT_FIT_COS: f64 = 0.95;
 /// ICP schedules of the candidates' fits and of the finalists' refits.
 const COARSE_SCHEDULE: [IcpStage; 3] = [

@@ -14,10 +14,11 @@
 //! kept to an ellipse about the located nose and step 2 to 30 mm of it; the points are turned back,
 //! so they are in the input's frame. Where localisation's finalists rank within
 //! [`PLAUSIBILITY_TIE`] of each other, each gets the steps and the anatomically most plausible
-//! result wins ([`implausibility`]). The steps run in that view and in four views tilted by ±5°
-//! (`consensus.rs`): a point that the untilted view puts more than [`CONSENSUS_KEEP_MM`] from the
-//! medoid of the five is replaced by it, and the views' spread per point
-//! ([`LandmarkReport::spread_mm`]) names the unstable ones.
+//! result wins ([`implausibility`]); the lower-ranked ones too while that result is suspect.
+//! The steps run in that view and in four views tilted by ±5° (`consensus.rs`): a point that
+//! the untilted view puts more than [`CONSENSUS_KEEP_MM`] from the medoid of the five is
+//! replaced by it, and the views' spread per point ([`LandmarkReport::spread_mm`]) names the
+//! unstable ones.
 //! [`LandmarkReport::localisation`] gives the orientation found; [`LandmarkReport::suspect`]
 //! the reasons not to trust the points
 //! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point, three or
@@ -503,7 +504,9 @@ pub fn detect_with_descriptors(
 }
 
 /// The nine steps on each finalist of face localisation within [`PLAUSIBILITY_TIE`] of the
-/// best; the most plausible result.
+/// best, and on the face-like finalists beyond it while the most plausible result so far is
+/// suspect ([`SUSPECT_FAILED_CHECKS`] or more problems); the most plausible result
+/// (beyond the tie, [`second_opinion_wins`]).
 fn detect_located(
     mesh: &Mesh,
     topology: &Topology,
@@ -522,7 +525,13 @@ fn detect_located(
     let mut turned = consensus::Turned::new(mesh, desc);
     let mut best: Option<(usize, LandmarkReport)> = None;
     for (k, (found, rank)) in finalists.into_iter().enumerate() {
-        if rank < best_rank - PLAUSIBILITY_TIE {
+        let tied = rank >= best_rank - PLAUSIBILITY_TIE;
+        // Beyond the tie, a finalist is a second opinion on a suspect result, if it is
+        // face-like itself (never trade a suspect face for what localisation calls no face).
+        let second_opinion = !tied
+            && found.face_likeness >= localise_params.face_likeness_min
+            && (best.as_ref()).is_some_and(|(b, _)| *b >= SUSPECT_FAILED_CHECKS);
+        if !tied && !second_opinion {
             continue;
         }
         let report = match steps_for(&scan, &mut turned, params, localise_params, found) {
@@ -531,7 +540,14 @@ fn detect_located(
             Err(_) => continue,
         };
         let problems = implausibility(&report);
-        if best.as_ref().is_none_or(|(b, _)| problems < *b) {
+        let wins = |(b, r): &(usize, LandmarkReport)| {
+            if tied {
+                problems < *b
+            } else {
+                second_opinion_wins(r, &report)
+            }
+        };
+        if best.as_ref().is_none_or(wins) {
             best = Some((problems, report));
         }
     }
@@ -543,8 +559,24 @@ fn detect_located(
 /// the one with the fewest anatomical problems ([`implausibility`]) wins (the best-ranked on a
 /// tie): the generic face's fit can score as well slid onto the brow or the chin of a face far
 /// from average as in the right place, while the steps' points then fail Table 2. The same
-/// margin as the scanner-frame prior.
+/// margin as the scanner-frame prior. A face-like finalist ranked lower still gets the steps
+/// while the best result so far is suspect, and may replace it ([`second_opinion_wins`]): the
+/// prior alone can lift a scanner-frame fit slid onto the chin above a tilted start's right
+/// fit (a smile far from the average face). A plausible best result costs no extra run.
 pub const PLAUSIBILITY_TIE: f64 = 0.1;
+
+/// Whether `second`, the result of a finalist ranked beyond [`PLAUSIBILITY_TIE`], replaces
+/// the suspect result `first`: it has fewer problems ([`implausibility`]), is not suspect
+/// itself, and puts the nose tip more than [`localise::DISTINCT_FIT_MM`] from `first`'s (the
+/// face found elsewhere). With the nose tip where `first` has it, the problems are the face's
+/// own (far from Table 2's means), and another frame whose checks happen to pass is no
+/// evidence against them.
+pub fn second_opinion_wins(first: &LandmarkReport, second: &LandmarkReport) -> bool {
+    let tip = |r: &LandmarkReport| r.landmarks.get(FeaturePoint::NoseTip);
+    implausibility(second) < implausibility(first)
+        && second.suspect.is_empty()
+        && tip(first).distance(tip(second)) > localise::DISTINCT_FIT_MM
+}
 
 /// How many things speak against a detection's anatomy: failed Table 2 and level checks,
 /// anatomical points guessed at their Table 2 position, and anatomical points the tilted views
