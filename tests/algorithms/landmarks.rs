@@ -924,9 +924,8 @@ fn three_failed_checks_or_unstable_points_make_a_detection_suspect() {
     assert!(reasons[0].contains("apart: inner_eye_left)"), "{reasons:?}");
 }
 
-/// A left/right pair (eye, nose or mouth corners) whose heights differ by more than
-/// `SUSPECT_LEVEL_MM` makes a detection suspect alone; just under it (a one-sided smile lifts
-/// one mouth corner about 7 mm), it is one failed check among others.
+/// The rule by which a lower-ranked localisation finalist replaces a suspect result, on one
+/// detection's report edited: failed checks, a moved nose tip, a suspect reason.
 #[test]
 fn a_second_opinion_needs_fewer_problems_no_suspicion_and_the_nose_elsewhere() {
     let (mesh, _, _) = generated_scan("subj000_frontal1");
@@ -965,6 +964,9 @@ fn a_second_opinion_needs_fewer_problems_no_suspicion_and_the_nose_elsewhere() {
     assert!(!landmarks::second_opinion_wins(&first, &guessed));
 }
 
+/// A left/right pair (eye, nose or mouth corners) whose heights differ by more than
+/// `SUSPECT_LEVEL_MM` makes a detection suspect alone; just under it (a one-sided smile lifts
+/// one mouth corner about 7 mm), it is one failed check among others.
 #[test]
 fn a_pair_far_from_level_makes_a_detection_suspect_alone() {
     let (mesh, _, _) = generated_scan("subj000_frontal1");
