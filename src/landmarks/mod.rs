@@ -534,7 +534,7 @@ fn detect_located(
         if !tied && !second_opinion {
             continue;
         }
-        let report = match steps_for(&scan, &mut turned, params, localise_params, found) {
+        let mut report = match steps_for(&scan, &mut turned, params, localise_params, found) {
             Ok(r) => r,
             Err(e) if k == 0 => return Err(e),
             Err(_) => continue,
@@ -548,6 +548,17 @@ fn detect_located(
             }
         };
         if best.as_ref().is_none_or(wins) {
+            if let (false, Some((b, r))) = (tied, &best) {
+                let moved_mm = (r.landmarks.get(FeaturePoint::NoseTip))
+                    .distance(report.landmarks.get(FeaturePoint::NoseTip));
+                report.warnings.push(format!(
+                    "face localisation: the best-ranked fit of the generic face gave a suspect \
+                     face ({b} problems); a lower-ranked fit (face-likeness {:.2}) gave a \
+                     plausible one with the nose tip {moved_mm:.0} mm away, which was kept: \
+                     check the picture",
+                    found.face_likeness
+                ));
+            }
             best = Some((problems, report));
         }
     }
@@ -566,9 +577,9 @@ fn detect_located(
 pub const PLAUSIBILITY_TIE: f64 = 0.1;
 
 /// Whether `second`, the result of a finalist ranked beyond [`PLAUSIBILITY_TIE`], replaces
-/// the suspect result `first`: it has fewer problems ([`implausibility`]), is not suspect
-/// itself, and puts the nose tip more than [`localise::DISTINCT_FIT_MM`] from `first`'s (the
-/// face found elsewhere). With the nose tip where `first` has it, the problems are the face's
+/// the suspect result `first` (with a warning that says so): it has fewer problems
+/// ([`implausibility`]), is not suspect itself, and puts the nose tip more than
+/// [`localise::DISTINCT_FIT_MM`] from `first`'s (the face found elsewhere). With the nose tip where `first` has it, the problems are the face's
 /// own (far from Table 2's means), and another frame whose checks happen to pass is no
 /// evidence against them.
 pub fn second_opinion_wins(first: &LandmarkReport, second: &LandmarkReport) -> bool {

@@ -399,6 +399,12 @@ fn a_suspect_best_ranked_face_gives_way_to_a_lower_ranked_plausible_one() {
             r.suspect
         );
     }
+    // The user is told which fit was kept, and why.
+    assert!(
+        (r.warnings.iter()).any(|w| w.contains("a lower-ranked fit")),
+        "{:?}",
+        r.warnings
+    );
     assert!(r.suspect.is_empty(), "{:?}", r.suspect);
 }
 
