@@ -540,25 +540,25 @@ fn detect_located(
             Err(_) => continue,
         };
         let problems = implausibility(&report);
-        let wins = |(b, r): &(usize, LandmarkReport)| {
-            if tied {
-                problems < *b
-            } else {
-                second_opinion_wins(r, &report)
+        let wins = match &best {
+            None => true,
+            Some((b, _)) if tied => problems < *b,
+            Some((b, first)) => {
+                let kept = second_opinion_wins(first, &report);
+                if kept {
+                    let moved_mm = nose_tip_moved_mm(first, &report);
+                    report.warnings.push(format!(
+                        "face localisation: the best-ranked fit of the generic face gave a \
+                         suspect face ({b} problems); a lower-ranked fit (face-likeness {:.2}) \
+                         gave a plausible one with the nose tip {moved_mm:.0} mm away, which \
+                         was kept: check the picture",
+                        found.face_likeness
+                    ));
+                }
+                kept
             }
         };
-        if best.as_ref().is_none_or(wins) {
-            if let (false, Some((b, r))) = (tied, &best) {
-                let moved_mm = (r.landmarks.get(FeaturePoint::NoseTip))
-                    .distance(report.landmarks.get(FeaturePoint::NoseTip));
-                report.warnings.push(format!(
-                    "face localisation: the best-ranked fit of the generic face gave a suspect \
-                     face ({b} problems); a lower-ranked fit (face-likeness {:.2}) gave a \
-                     plausible one with the nose tip {moved_mm:.0} mm away, which was kept: \
-                     check the picture",
-                    found.face_likeness
-                ));
-            }
+        if wins {
             best = Some((problems, report));
         }
     }
@@ -579,14 +579,19 @@ pub const PLAUSIBILITY_TIE: f64 = 0.1;
 /// Whether `second`, the result of a finalist ranked beyond [`PLAUSIBILITY_TIE`], replaces
 /// the suspect result `first` (with a warning that says so): it has fewer problems
 /// ([`implausibility`]), is not suspect itself, and puts the nose tip more than
-/// [`localise::DISTINCT_FIT_MM`] from `first`'s (the face found elsewhere). With the nose tip where `first` has it, the problems are the face's
-/// own (far from Table 2's means), and another frame whose checks happen to pass is no
-/// evidence against them.
+/// [`localise::DISTINCT_FIT_MM`] from `first`'s (the face found elsewhere). With the nose tip
+/// where `first` has it, the problems are the face's own (far from Table 2's means), and
+/// another frame whose checks happen to pass is no evidence against them.
 pub fn second_opinion_wins(first: &LandmarkReport, second: &LandmarkReport) -> bool {
-    let tip = |r: &LandmarkReport| r.landmarks.get(FeaturePoint::NoseTip);
     implausibility(second) < implausibility(first)
         && second.suspect.is_empty()
-        && tip(first).distance(tip(second)) > localise::DISTINCT_FIT_MM
+        && nose_tip_moved_mm(first, second) > localise::DISTINCT_FIT_MM
+}
+
+/// How far apart two detections put the nose tip, mm.
+fn nose_tip_moved_mm(a: &LandmarkReport, b: &LandmarkReport) -> f64 {
+    let tip = |r: &LandmarkReport| r.landmarks.get(FeaturePoint::NoseTip);
+    tip(a).distance(tip(b))
 }
 
 /// How many things speak against a detection's anatomy: failed Table 2 and level checks,

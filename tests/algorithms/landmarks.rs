@@ -887,6 +887,15 @@ fn pass_every_check(report: &mut landmarks::LandmarkReport) {
     }
 }
 
+/// The detection on the small generated set's scan `stem`, every check marked as passed: a
+/// report to edit into the cases of the suspect rules.
+fn passing_report(stem: &str) -> landmarks::LandmarkReport {
+    let (mesh, _, _) = generated_scan(stem);
+    let mut report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
+    pass_every_check(&mut report);
+    report
+}
+
 #[test]
 fn three_failed_checks_or_unstable_points_make_a_detection_suspect() {
     let (mesh, _, _) = generated_scan("subj000_frontal1");
@@ -934,9 +943,7 @@ fn three_failed_checks_or_unstable_points_make_a_detection_suspect() {
 /// detection's report edited: failed checks, a moved nose tip, a suspect reason.
 #[test]
 fn a_second_opinion_needs_fewer_problems_no_suspicion_and_the_nose_elsewhere() {
-    let (mesh, _, _) = generated_scan("subj000_frontal1");
-    let mut plain = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
-    pass_every_check(&mut plain);
+    let mut plain = passing_report("subj000_frontal1");
     plain.suspect.clear();
     let params = landmarks::localise::LocaliseParams::default();
     let suspect = |mut r: landmarks::LandmarkReport| {
@@ -975,9 +982,7 @@ fn a_second_opinion_needs_fewer_problems_no_suspicion_and_the_nose_elsewhere() {
 /// one mouth corner about 7 mm), it is one failed check among others.
 #[test]
 fn a_pair_far_from_level_makes_a_detection_suspect_alone() {
-    let (mesh, _, _) = generated_scan("subj000_frontal1");
-    let mut report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
-    pass_every_check(&mut report);
+    let report = passing_report("subj000_frontal1");
     let params = landmarks::localise::LocaliseParams::default();
     let limit = landmarks::SUSPECT_LEVEL_MM;
     for k in 0..report.level.len() {
@@ -1002,9 +1007,7 @@ fn a_pair_far_from_level_makes_a_detection_suspect_alone() {
 #[test]
 fn implausibility_counts_failed_checks_guesses_and_unstable_anatomical_points() {
     use FeaturePoint::*;
-    let (mesh, _, _) = generated_scan("subj001_frontal1");
-    let mut report = landmarks::detect(&mesh, &LandmarkParams::default()).unwrap();
-    pass_every_check(&mut report);
+    let mut report = passing_report("subj001_frontal1");
     report.guessed.clear();
     let mut spread = [0.0; FeaturePoint::COUNT];
     report.spread_mm = Some(spread);
