@@ -355,7 +355,7 @@ pub fn run(cli: Cli) -> Result<Next> {
 
 /// `facesynth info FILE` as a JSON value.
 pub fn info(file: &Path) -> Result<serde_json::Value> {
-    let mesh = io::read_mesh(file)?;
+    let (mesh, units) = io::read_mesh_and_units(file, &io::default_limits())?;
     let counts = mesh.face_counts();
     let (lo, hi) = mesh.bbox_mm().context("mesh is empty")?;
     let round = |v: glam::DVec3| v.to_array().map(|c| (c * 1e4).round() / 1e4);
@@ -367,7 +367,17 @@ pub fn info(file: &Path) -> Result<serde_json::Value> {
         "triangles": counts.triangles,
         "bbox_min_mm": round(lo),
         "bbox_max_mm": round(hi),
+        "units": units_json(units),
     }))
+}
+
+/// A report's record of the unit a scan file was read in (its coordinates are in millimetres
+/// whatever the file's): `file` (`mm`, `cm`, `m`), `mm_per_file_unit`, `guessed` (from the
+/// mesh's size, or given by `--units`).
+pub(crate) fn units_json(units: io::UnitsRead) -> serde_json::Value {
+    json!({
+        "file": units.symbol(), "mm_per_file_unit": units.mm_per_unit(), "guessed": units.guessed,
+    })
 }
 
 /// `facesynth curvature IN OUT.ply`: the shape index as the PLY's per-vertex `quality`.

@@ -14,7 +14,7 @@ pub fn landmarks(
     png: Option<&Path>,
     params: &crate::landmarks::LandmarkParams,
 ) -> Result<serde_json::Value> {
-    let mut mesh = io::read_mesh(input)?;
+    let (mut mesh, units) = io::read_mesh_and_units(input, &io::default_limits())?;
     let start = std::time::Instant::now();
     if denoise_first {
         denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;
@@ -48,6 +48,8 @@ pub fn landmarks(
     value["millis"] = json!(millis);
     value["input"] = json!(input);
     value["denoised"] = json!(denoise_first);
+    // The points are in millimetres whatever the file's unit: the unit says how to go back.
+    value["units"] = super::units_json(units);
     // The landmark file schema (`pipeline::LandmarkFile`): what it is and whose points.
     value["source"] = json!(crate::pipeline::LandmarkSource::Detected);
     value["scan"] = json!(input.file_name().map(|n| n.to_string_lossy()));

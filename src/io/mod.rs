@@ -23,7 +23,7 @@ pub mod units;
 pub mod vrml;
 pub mod xyz;
 
-pub use units::Units;
+pub use units::{Units, UnitsRead};
 
 use crate::mesh::Polygons;
 use crate::{Error, Mesh, Result};
@@ -137,9 +137,15 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
 
 /// Reads a mesh in any known format (by extension).
 pub fn read_mesh_with(path: &Path, limits: &ReadLimits) -> Result<Mesh> {
+    read_mesh_and_units(path, limits).map(|(mesh, _)| mesh)
+}
+
+/// [`read_mesh_with`], with the unit the file was read in (for reports: the mesh is in
+/// millimetres whatever the file's unit).
+pub fn read_mesh_and_units(path: &Path, limits: &ReadLimits) -> Result<(Mesh, UnitsRead)> {
     let format = MeshFormat::from_path(path)?;
     let bytes = read_file(path, limits)?;
-    parse_mesh(&bytes, format, path, limits)
+    parse_mesh_and_units(&bytes, format, path, limits)
 }
 
 /// Parses a file's bytes in `format` and validates the mesh: what [`read_mesh_with`] does after
@@ -150,6 +156,16 @@ pub fn parse_mesh(
     path: &Path,
     limits: &ReadLimits,
 ) -> Result<Mesh> {
+    parse_mesh_and_units(bytes, format, path, limits).map(|(mesh, _)| mesh)
+}
+
+/// [`parse_mesh`], with the unit the file was read in.
+fn parse_mesh_and_units(
+    bytes: &[u8],
+    format: MeshFormat,
+    path: &Path,
+    limits: &ReadLimits,
+) -> Result<(Mesh, UnitsRead)> {
     if looks_like_utf16(bytes) {
         return Err(Error::invalid(
             path,
@@ -168,7 +184,8 @@ pub fn parse_mesh(
         mesh.update_normals();
     }
     mesh.validate().map_err(|m| Error::invalid(path, m))?;
-    if let Some(note) = units::to_millimetres(&mut mesh, limits.units, path) {
+    let (units_read, note) = units::to_millimetres(&mut mesh, limits.units, path);
+    if let Some(note) = note {
         notify(&note);
     }
     let bound = limits.max_abs_coordinate_mm;
@@ -187,7 +204,7 @@ pub fn parse_mesh(
             ),
         ));
     }
-    Ok(mesh)
+    Ok((mesh, units_read))
 }
 
 /// A UTF-16 byte-order mark, or ASCII text with a zero byte after every character (Windows

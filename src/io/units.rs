@@ -29,6 +29,32 @@ impl Units {
     }
 }
 
+/// The unit a file was read in, and whether it was guessed from the mesh's size: what a report
+/// records so that its millimetre coordinates can be taken back to the file's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnitsRead {
+    /// Never [`Units::Auto`]: the unit applied.
+    pub units: Units,
+    /// Guessed ([`Units::Auto`] was asked), not given.
+    pub guessed: bool,
+}
+
+impl UnitsRead {
+    /// Millimetres per file unit.
+    pub fn mm_per_unit(self) -> f64 {
+        self.units.mm_per_unit().unwrap_or(1.0)
+    }
+
+    /// The unit's symbol: `mm`, `cm` or `m`.
+    pub fn symbol(self) -> &'static str {
+        match self.units {
+            Units::Auto | Units::Millimetres => "mm",
+            Units::Centimetres => "cm",
+            Units::Metres => "m",
+        }
+    }
+}
+
 /// A face, or a head with neck and shoulders, spans 0.1–1 m: a mesh whose largest bounding-box
 /// side lies in this range of units is in metres. In millimetres it would be under 3 mm across,
 /// smaller than a nostril, which no face scan is.
@@ -54,21 +80,24 @@ pub fn guess(mesh: &Mesh) -> Units {
     }
 }
 
-/// Scales `mesh` (read from `path` in `units`) to millimetres. Returns a one-line note when it
-/// scaled by a guess, for the caller to show: the user must know.
-pub fn to_millimetres(mesh: &mut Mesh, units: Units, path: &Path) -> Option<String> {
-    let used = match units {
-        Units::Auto => guess(mesh),
-        given => given,
+/// Scales `mesh` (read from `path` in `units`) to millimetres. Returns the unit applied, and a
+/// one-line note when it scaled by a guess, for the caller to show: the user must know.
+pub fn to_millimetres(mesh: &mut Mesh, units: Units, path: &Path) -> (UnitsRead, Option<String>) {
+    let read = UnitsRead {
+        units: match units {
+            Units::Auto => guess(mesh),
+            given => given,
+        },
+        guessed: units == Units::Auto,
     };
-    let scale = used.mm_per_unit().unwrap_or(1.0);
+    let scale = read.mm_per_unit();
     if scale == 1.0 {
-        return None;
+        return (read, None);
     }
     for p in &mut mesh.positions_mm {
         *p *= scale;
     }
-    (units == Units::Auto).then(|| {
+    let note = read.guessed.then(|| {
         let extent = mesh
             .bbox_mm()
             .map_or(0.0, |(lo, hi)| (hi - lo).max_element() / scale);
@@ -77,7 +106,8 @@ pub fn to_millimetres(mesh: &mut Mesh, units: Units, path: &Path) -> Option<Stri
              1000 to millimetres (--units mm reads it as millimetres)",
             path.display()
         )
-    })
+    });
+    (read, note)
 }
 
 #[cfg(test)]
@@ -104,7 +134,12 @@ mod tests {
     fn a_face_sized_in_metres_is_scaled_and_said() {
         // 30 × 30 samples 5 mm apart, written in metres: 0.145 units across.
         let mut m = grid(30, 0.005);
-        let note = to_millimetres(&mut m, Units::Auto, Path::new("head.ply")).unwrap();
+        let (read, note) = to_millimetres(&mut m, Units::Auto, Path::new("head.ply"));
+        let note = note.unwrap();
+        assert_eq!(
+            (read.symbol(), read.mm_per_unit(), read.guessed),
+            ("m", 1000.0, true)
+        );
         assert!(
             note.contains("head.ply") && note.contains("metres"),
             "{note}"
@@ -121,14 +156,20 @@ mod tests {
             (grid(30, 0.0005), "0.0145 units: not a head in metres"),
         ] {
             let before = m.positions_mm.clone();
-            assert_eq!(to_millimetres(&mut m, Units::Auto, Path::new("x")), None);
+            let (read, note) = to_millimetres(&mut m, Units::Auto, Path::new("x"));
+            assert_eq!(
+                (read.symbol(), read.guessed, note),
+                ("mm", true, None),
+                "{what}"
+            );
             assert_eq!(m.positions_mm, before, "{what}");
         }
         // Given units are applied silently, whatever the size.
         let mut m = grid(30, 2.0);
+        let (read, note) = to_millimetres(&mut m, Units::Centimetres, Path::new("x"));
         assert_eq!(
-            to_millimetres(&mut m, Units::Centimetres, Path::new("x")),
-            None
+            (read.symbol(), read.mm_per_unit(), read.guessed, note),
+            ("cm", 10.0, false, None)
         );
         assert_eq!(m.positions_mm[1].x, 20.0);
         let mut m = grid(30, 0.005);

@@ -463,6 +463,19 @@ pub fn detect_with_descriptors(
 ) -> Result<(LandmarkReport, SurfaceDescriptors)> {
     mesh.validate().map_err(Error::InvalidMesh)?;
     params.validate()?;
+    let extent_mm = mesh
+        .bbox_mm()
+        .map_or(0.0, |(lo, hi)| (hi - lo).max_element());
+    if extent_mm < MIN_FACE_EXTENT_MM {
+        return Err(Error::algorithm(
+            "landmarks: facial segmentation",
+            format!(
+                "the scan is {extent_mm:.1} mm across at its widest, smaller than a face (both \
+                 eyes alone span about 90 mm): if the file is in centimetres, give --units cm \
+                 (--units m for metres)"
+            ),
+        ));
+    }
     let topology = Topology::new(mesh);
     let n = mesh.vertex_count();
     // The finalists the face-likeness cannot tell apart (within `PLAUSIBILITY_TIE` of the
@@ -739,3 +752,9 @@ pub const FIT_NOSE_TIP_WARN_MM: f64 = localise::COVER_TAPER_MM;
 /// Fewer vertices than this cannot hold a face at scanner resolution (the paper's scans have
 /// 10,000 or more; a face at 2 mm spacing ~3,000).
 pub const MIN_FACE_VERTICES: usize = 200;
+
+/// A scan whose bounding box is under this at its widest (mm) cannot hold the 13 points: both
+/// eyes' outer corners alone lie about 85–100 mm apart in adults (biocular width; 82–96 mm on
+/// the benchmark's faces), and forehead to chin spans more. A face that small is a file in
+/// centimetres (a face 15–25 units wide) or inches, read as millimetres.
+pub const MIN_FACE_EXTENT_MM: f64 = 80.0;

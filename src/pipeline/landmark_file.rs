@@ -5,7 +5,9 @@
 //! frame), `"source"` (`detected`: written by `facesynth landmarks --json`; `corrected`: saved
 //! by the editor after points were moved; `given`: anything else), `"scan"` (the file name of
 //! the scan it belongs to) and `"corrected"` (the names of the points placed by hand).
-//! `landmarks --json` adds its checks beside them. A flat map name → [x, y, z] is read as
+//! `landmarks --json` adds its checks beside them, and `"units"`: the scan file's unit (`file`:
+//! `mm`, `cm` or `m`; `mm_per_file_unit`; `guessed` from its size or given by `--units`), since
+//! the points are in millimetres whatever the file's. A flat map name → [x, y, z] is read as
 //! `given`.
 //!
 //! A correction file `<scan stem>.landmarks.json` beside a scan, or in the folder given by

@@ -159,9 +159,22 @@ fn bench_landmarks_reports_stage_times() {
     }
 }
 
+/// Every point of two `landmarks --json` outputs within `tol_mm`.
+fn assert_same_points(a: &serde_json::Value, b: &serde_json::Value, tol_mm: f64) {
+    for (name, p) in a["landmarks"].as_object().unwrap() {
+        let q = &b["landmarks"][name];
+        let d: f64 = (0..3)
+            .map(|k| (p[k].as_f64().unwrap() - q[k].as_f64().unwrap()).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(d < tol_mm, "{name}: {d} mm apart");
+    }
+}
+
 /// A real scan exported in metres (a face 0.2 units wide, as a real head scan came) is scaled
-/// to millimetres, said on stderr with the file's name, and gives the points of the
-/// millimetre scan; `--units mm` reads it as it is and then finds no face.
+/// to millimetres, said on stderr with the file's name and in `landmarks`' and `info`'s
+/// `units`, and gives the points of the millimetre scan; `--units mm` reads it as it is and
+/// then finds no face, and says which flag reads it.
 #[test]
 fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
     let dir = tempfile::tempdir().unwrap();
@@ -180,17 +193,57 @@ fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
         "{stderr}"
     );
     let scaled = json_of(&out);
-    for (name, p) in mm["landmarks"].as_object().unwrap() {
-        let q = &scaled["landmarks"][name];
-        let d: f64 = (0..3)
-            .map(|k| (p[k].as_f64().unwrap() - q[k].as_f64().unwrap()).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        // PLY stores single precision: 1e-3 m ~ 1e-4 mm relative; the points agree to 0.1 mm.
-        assert!(d < 0.1, "{name}: {d} mm apart");
-    }
+    // PLY stores single precision: 1e-3 m ~ 1e-4 mm relative; the points agree to 0.1 mm.
+    assert_same_points(&mm, &scaled, 0.1);
+    assert_eq!(
+        scaled["units"],
+        serde_json::json!({"file": "m", "mm_per_file_unit": 1000.0, "guessed": true})
+    );
+    assert_eq!(
+        mm["units"],
+        serde_json::json!({"file": "mm", "mm_per_file_unit": 1.0, "guessed": true})
+    );
+    let info = json_of(&facesynth(&["info", metres.to_str().unwrap()]));
+    assert_eq!(info["units"], scaled["units"]);
     let out = facesynth(&["landmarks", metres.to_str().unwrap(), "--units", "mm"]);
     assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--units m"));
+}
+
+/// A scan in centimetres (a face 26 units wide) is not guessed (a millimetre crop can be that
+/// size), but the feature points refuse it with a one-line error naming the file and the flag;
+/// with `--units cm` it gives the millimetre scan's points, and the JSON says so.
+#[test]
+fn a_scan_in_centimetres_is_refused_with_the_flag_that_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = common::gavab("cara1_frontal1.wrl");
+    let mut mesh = facesynth::io::read_mesh(&src).unwrap();
+    for p in &mut mesh.positions_mm {
+        *p *= 0.1;
+    }
+    let cm = dir.path().join("head_in_cm.ply");
+    facesynth::io::write_mesh(&cm, &mesh).unwrap();
+    let out = facesynth(&["landmarks", cm.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.lines().count() == 1
+            && stderr.contains("head_in_cm.ply")
+            && stderr.contains("--units cm"),
+        "{stderr}"
+    );
+    let mm = json_of(&facesynth(&["landmarks", src.to_str().unwrap()]));
+    let read = json_of(&facesynth(&[
+        "landmarks",
+        cm.to_str().unwrap(),
+        "--units",
+        "cm",
+    ]));
+    assert_same_points(&mm, &read, 0.1);
+    assert_eq!(
+        read["units"],
+        serde_json::json!({"file": "cm", "mm_per_file_unit": 10.0, "guessed": false})
+    );
 }
 
 /// A scan in other axes (facing −x, forehead +z): the search finds its face, `--facing/--up`
