@@ -416,6 +416,7 @@ pub fn register(
 ) -> Result<serde_json::Value> {
     let generic = generic_face::build();
     let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
+    crate::pipeline::notify_suspect(scan, prepared.suspect_reasons());
     let result = &prepared.registration;
     if let Some(path) = out {
         io::write_mesh(path, &result.mesh)?;
@@ -427,6 +428,12 @@ pub fn register(
     value["landmarks_file"] = json!(prepared.given.as_ref().map(|(p, _)| p));
     if let Some(d) = &prepared.detection {
         value["landmark_warnings"] = json!(d.warnings);
+        // What `landmarks --json` says of the detection: how face-like, how the head is turned
+        // (the rotation the steps worked in), and whether the points are suspect.
+        let detected = d.to_json();
+        for key in ["confidence", "orientation", "suspect", "suspect_reasons"] {
+            value[format!("landmarks_{key}")] = detected[key].clone();
+        }
     }
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;

@@ -79,6 +79,8 @@ pub fn compare_expression(
         "repairs": pair.repairs,
         "landmarks_source": pair.neutral_source,
         "expression_landmarks_source": pair.expression_source,
+        "landmarks_suspect_reasons": pair.neutral_suspect,
+        "expression_landmarks_suspect_reasons": pair.expression_suspect,
     });
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;

@@ -12,17 +12,24 @@ use std::path::Path;
 use std::time::Instant;
 
 /// The face to build the model on: the generic face, or the generic face registered to `scan`
-/// (denoised, feature points detected or read from `landmarks`).
-pub fn face_for(scan: Option<&Path>, landmarks: Option<&Path>) -> Result<GenericFace> {
+/// (denoised, feature points detected or read from `landmarks`); with why the detected points
+/// are suspect (also said on stderr; empty where they are not).
+pub fn face_for(
+    scan: Option<&Path>,
+    landmarks: Option<&Path>,
+) -> Result<(GenericFace, Vec<String>)> {
     let generic = generic_face::build();
     let Some(scan) = scan else {
-        return Ok(generic);
+        return Ok((generic, Vec::new()));
     };
     let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
-    Ok(GenericFace {
+    crate::pipeline::notify_suspect(scan, prepared.suspect_reasons());
+    let suspect = prepared.suspect_reasons().to_vec();
+    let face = GenericFace {
         mesh: prepared.registration.mesh,
         feature_vertices: generic.feature_vertices,
-    })
+    };
+    Ok((face, suspect))
 }
 
 /// Presets: the built-ins plus an optional user file (same names replace built-ins).
@@ -75,7 +82,7 @@ pub fn synthesize(
     muscles: Option<&Path>,
     png: bool,
 ) -> Result<serde_json::Value> {
-    let face = face_for(scan, landmarks)?;
+    let (face, suspect) = face_for(scan, landmarks)?;
     let set = expression_set(presets)?;
     let selected = set.select(expressions)?;
     let (model, repairs) = solved_model(&face, muscles)?;
@@ -111,6 +118,7 @@ pub fn synthesize(
         "min_thickness_factor": round(model.extrusion.min_thickness_factor, 4),
         "mean_scaled_jacobian": round(model.quality.mean_scaled_jacobian, 4),
         "repairs": repairs,
+        "landmarks_suspect_reasons": suspect,
         "expressions": report,
     });
     io::write_text_atomic(
@@ -128,7 +136,7 @@ pub fn export_fem(
     vtk: &Path,
     presets: Option<&Path>,
 ) -> Result<serde_json::Value> {
-    let face = face_for(scan, landmarks)?;
+    let (face, _) = face_for(scan, landmarks)?;
     let set = expression_set(presets)?;
     let e = set.get(expression).with_context(|| {
         format!(
@@ -322,6 +330,9 @@ pub struct ScanPair {
     pub scan_landmarks: Option<crate::Landmarks>,
     pub neutral_source: crate::pipeline::LandmarkSource,
     pub expression_source: Option<crate::pipeline::LandmarkSource>,
+    /// Why each scan's detected points are suspect (said on stderr too; empty: they are not).
+    pub neutral_suspect: Vec<String>,
+    pub expression_suspect: Vec<String>,
 }
 
 impl ScanPair {
@@ -334,6 +345,8 @@ impl ScanPair {
     ) -> Result<Self> {
         let generic = generic_face::build();
         let prepared = crate::pipeline::prepare_scan(neutral, landmarks, &generic)?;
+        crate::pipeline::notify_suspect(neutral, prepared.suspect_reasons());
+        let neutral_suspect = prepared.suspect_reasons().to_vec();
         let neutral_source = prepared.landmark_source();
         let face = GenericFace {
             mesh: prepared.registration.mesh,
@@ -343,6 +356,10 @@ impl ScanPair {
         let (scan, found) =
             crate::pipeline::prepare_expression_scan(expression, expression_landmarks)?;
         let expression_source = found.as_ref().map(|f| f.source());
+        let expression_suspect = found.as_ref().map_or(Vec::new(), |f| {
+            crate::pipeline::notify_suspect(expression, f.suspect_reasons());
+            f.suspect_reasons().to_vec()
+        });
         let scan_landmarks = found.map(|f| f.landmarks);
         Ok(ScanPair {
             model,
@@ -352,6 +369,8 @@ impl ScanPair {
             scan_landmarks,
             neutral_source,
             expression_source,
+            neutral_suspect,
+            expression_suspect,
         })
     }
 }
@@ -384,6 +403,8 @@ pub fn fit_expression(
         scan_landmarks,
         neutral_source,
         expression_source,
+        neutral_suspect,
+        expression_suspect,
     } = ScanPair::prepare(
         neutral,
         expression,
@@ -496,6 +517,8 @@ pub fn fit_expression(
         // `null`: the expression scan's detection failed, the alignment used no points).
         "landmarks_source": neutral_source,
         "expression_landmarks_source": expression_source,
+        "landmarks_suspect_reasons": neutral_suspect,
+        "expression_landmarks_suspect_reasons": expression_suspect,
         "landmarks_file": landmarks,
         "expression_landmarks_file": expression_landmarks,
     }))

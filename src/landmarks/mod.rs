@@ -23,10 +23,12 @@
 //! the reasons not to trust the points
 //! ([`suspect_reasons`]: low face-likeness, a profile, a guessed anatomical point, three or
 //! more failed Table 2 and level checks or unstable points, an eye, nose or mouth corner pair
-//! more than [`SUSPECT_LEVEL_MM`] from level).
+//! more than [`SUSPECT_LEVEL_MM`] from level). Every command that detects says so: `augment`
+//! refuses the scan, `evaluate` poses it without its points, the single-scan commands go on
+//! and say it on stderr (`pipeline::notify_suspect`); all list it in their reports.
 //!
-//! Errors: [`detect`] fails only when there is no face to work on (no front-facing region,
-//! nothing that protrudes like a nose). A feature that is not found (e.g. an eye lost to a
+//! Errors: [`detect`] fails only when there is no face to work on (a scan smaller than
+//! [`MIN_FACE_EXTENT_MM`], no front-facing region, nothing that protrudes like a nose). A feature that is not found (e.g. an eye lost to a
 //! hole) is placed at its Table 2 average position and named in
 //! [`LandmarkReport::warnings`], so one bad region does not lose the whole face.
 //!

@@ -58,6 +58,34 @@ impl PreparedScan {
     pub fn landmark_source(&self) -> LandmarkSource {
         source_of(&self.given)
     }
+
+    /// Why the detected points are suspect ([`LandmarkReport::suspect`]); empty where they
+    /// are not, or were read from a file.
+    pub fn suspect_reasons(&self) -> &[String] {
+        suspect_of(&self.detection)
+    }
+}
+
+fn suspect_of(detection: &Option<LandmarkReport>) -> &[String] {
+    detection.as_ref().map_or(&[], |d| &d.suspect)
+}
+
+/// Says through [`io::notify`] (stderr in the CLI) that the points detected on `path` are
+/// suspect, and why; nothing where `reasons` is empty. For the single-scan commands that go on
+/// with them (`register`, `synthesize`, `export-fem`, `fit-expression`, `compare-expression`):
+/// the user asked for that scan, and a false alarm must not block the work, but what is built
+/// on wrong points is wrong. (`augment` refuses such a scan and `evaluate` poses it without
+/// them; both list it.)
+pub fn notify_suspect(path: &Path, reasons: &[String]) {
+    if !reasons.is_empty() {
+        io::notify(&format!(
+            "{}: suspect feature points, so what is built on them may be wrong (move them in \
+             `facesynth view`, which saves <scan>.landmarks.json beside the scan for every \
+             command to use): {}",
+            path.display(),
+            reasons.join("; ")
+        ));
+    }
 }
 
 /// Reads a landmark file ([`LandmarkFile`]: what `facesynth landmarks --json` and the
@@ -90,6 +118,11 @@ impl ScanLandmarks {
     /// `detected`, `corrected` or `given`.
     pub fn source(&self) -> LandmarkSource {
         source_of(&self.given)
+    }
+
+    /// [`PreparedScan::suspect_reasons`].
+    pub fn suspect_reasons(&self) -> &[String] {
+        suspect_of(&self.detection)
     }
 
     /// The points the registration matches ([`registration_points`]).

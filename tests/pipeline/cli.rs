@@ -274,17 +274,14 @@ fn facing_and_up_give_the_scan_axes() {
     assert_eq!(given["orientation"]["facing"], "-x");
     assert_eq!(given["orientation"]["up"], "+z");
     assert_eq!(given["suspect"], false, "{}", given["suspect_reasons"]);
-    for (name, p) in searched["landmarks"].as_object().unwrap() {
-        let q = &given["landmarks"][name];
-        let d: f64 = (0..3)
-            .map(|k| (p[k].as_f64().unwrap() - q[k].as_f64().unwrap()).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        assert!(d < 2.0, "{name}: {d} mm apart");
-    }
-    // Registration on the file in other axes: the same fit as on the scan in its own frame.
+    assert_same_points(&searched, &given, 2.0);
+    // Registration on the file in other axes: the same fit as on the scan in its own frame,
+    // and its report says in which axes it found the face.
     let reg = |path: &str| json_of(&facesynth(&["register", path]));
     let (a, b) = (reg(src.to_str().unwrap()), reg(t));
+    assert_eq!(a["landmarks_orientation"]["facing"], "+z");
+    assert_eq!(b["landmarks_orientation"]["facing"], "-x");
+    assert_eq!(b["landmarks_orientation"]["up"], "+z");
     for key in ["rigid_rms_mm", "unmatched_vertices"] {
         let (x, y) = (a[key].as_f64().unwrap(), b[key].as_f64().unwrap());
         assert!(
@@ -383,4 +380,37 @@ fn landmarks_json_feeds_register_in_either_shape() {
         err.contains("partial.json") && err.contains("inner_eye_left"),
         "{err}"
     );
+}
+
+/// `register` goes on with suspect feature points (a false alarm must not block the work) but
+/// says so: one line on stderr naming the file and the reasons, and the report's
+/// `landmarks_suspect` and `landmarks_suspect_reasons`. A profile is suspect by design; a
+/// frontal scan says nothing.
+#[test]
+fn register_says_when_its_feature_points_are_suspect() {
+    let profile = common::gavab("cara1_derecha.wrl");
+    let out = facesynth(&["register", profile.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.lines().count() == 1
+            && stderr.contains("cara1_derecha.wrl")
+            && stderr.contains("suspect feature points")
+            && stderr.contains("profile"),
+        "{stderr}"
+    );
+    let v = json_of(&out);
+    assert_eq!(v["landmarks_suspect"], true);
+    let reasons = v["landmarks_suspect_reasons"].as_array().unwrap();
+    assert!(
+        reasons
+            .iter()
+            .any(|r| r.as_str().unwrap().contains("profile")),
+        "{reasons:?}"
+    );
+    let frontal = common::gavab("cara1_frontal1.wrl");
+    let out = facesynth(&["register", frontal.to_str().unwrap()]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("suspect"));
+    let v = json_of(&out);
+    assert_eq!(v["landmarks_suspect"], false);
+    assert_eq!(v["landmarks_suspect_reasons"], serde_json::json!([]));
 }

@@ -196,8 +196,13 @@ fn fit_expression_writes_a_loadable_preset() {
     let img = image::open(&picture).unwrap().to_rgb8();
     assert_eq!(img.width(), 480);
     assert!(img.pixels().any(|p| p.0[0].abs_diff(p.0[2]) > 100));
-    // Both scans' points came from the (flat, ground-truth) files.
+    // Both scans' points came from the (flat, ground-truth) files, so nothing is suspect.
     assert_eq!(v["landmarks_source"], "given");
+    assert_eq!(v["landmarks_suspect_reasons"], serde_json::json!([]));
+    assert_eq!(
+        v["expression_landmarks_suspect_reasons"],
+        serde_json::json!([])
+    );
     assert_eq!(v["expression_landmarks_source"], "given");
     // 18 muscles, the 8 soft-tissue loads (4 pairs) and the jaw's four actuators.
     let fitted = v["activations"].as_object().unwrap();
@@ -310,4 +315,34 @@ fn fit_expression_learns_an_open_jaw_and_repairs_folds_like_augment() {
     // The laugh opens the mouth (ground truth: jawOpen 0.25-0.55 of the ICT model's range).
     let jaw = v["activations"]["jaw_open"].as_f64().unwrap();
     assert!(jaw > 2.0, "jaw_open {jaw} degrees");
+}
+
+/// `synthesize` on a scan whose detected points are suspect (a profile) builds the face but
+/// says so on stderr and lists the reasons in its report.
+#[test]
+fn synthesize_on_suspect_points_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let profile = common::gavab("cara1_derecha.wrl");
+    let done = common::facesynth(&[
+        "synthesize",
+        profile.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--expressions",
+        "happiness",
+    ]);
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(
+        stderr.contains("cara1_derecha.wrl") && stderr.contains("suspect feature points"),
+        "{stderr}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert!(
+        !report["landmarks_suspect_reasons"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
 }
