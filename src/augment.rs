@@ -123,6 +123,9 @@ pub struct AugmentedScan {
     pub landmarks_source: LandmarkSource,
     /// The points placed by hand (from the correction file).
     pub corrected_points: Vec<String>,
+    /// The axes the face was found in and how the head is turned, as `landmarks --json` gives
+    /// them (`LandmarkReport::orientation_json`); `None` where the points came from a file.
+    pub orientation: Option<serde_json::Value>,
     pub matched_fraction: f64,
     pub millis: f64,
 }
@@ -138,6 +141,14 @@ pub struct AugmentFailure {
     /// The detected feature points were suspect ([`crate::landmarks::LandmarkReport::suspect`]):
     /// the scan was not augmented from them.
     pub suspect: bool,
+}
+
+/// The orientation a finished subject's `done.json` recorded (a resumed scan is not detected
+/// again); `None` where its points came from a file, or the marker is unreadable.
+fn recorded_orientation(dir: &Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join(DONE_MARKER)).ok()?;
+    let done: serde_json::Value = serde_json::from_str(&text).ok()?;
+    done.get("orientation").filter(|o| !o.is_null()).cloned()
 }
 
 /// The marker a finished subject's folder gets last: a folder without it is unfinished and is
@@ -394,6 +405,10 @@ fn augment_scan(
             .as_ref()
             .map(|(_, f)| f.corrected.iter().map(|p| p.name().to_string()).collect())
             .unwrap_or_default(),
+        orientation: prepared
+            .detection
+            .as_ref()
+            .and_then(|d| d.orientation_json()),
         matched_fraction: prepared.registration.matched_fraction(),
         millis: start.elapsed().as_secs_f64() * 1e3,
     };
@@ -472,6 +487,7 @@ pub fn augment(
                 let json = &correction.1;
                 let finished = finished_with(&dir, &recipe, json);
                 if finished == Finished::Same {
+                    let orientation = recorded_orientation(&dir);
                     return Ok(AugmentedScan {
                         scan: scan.clone(),
                         dir,
@@ -483,6 +499,7 @@ pub fn augment(
                             .unwrap_or(LandmarkSource::Detected),
                         corrected_points: serde_json::from_value(json["corrected"].clone())
                             .unwrap_or_default(),
+                        orientation,
                         matched_fraction: f64::NAN,
                         millis: 0.0,
                     });

@@ -428,21 +428,28 @@ impl LandmarkReport {
             "confidence": self.localisation.map(|l| round3(l.face_likeness)),
             "suspect": !self.suspect.is_empty(),
             "suspect_reasons": self.suspect,
-            "orientation": self.localisation.map(|l| {
-                let (yaw, pitch, roll) = localise::yaw_pitch_roll_deg(l.face_from_scan);
-                let (facing, up) = localise::facing_and_up(l.face_from_scan);
-                let m = l.face_from_scan.transpose().to_cols_array_2d();
-                json!({
-                    "facing": facing, "up": up,
-                    "yaw_deg": round3(yaw), "pitch_deg": round3(pitch), "roll_deg": round3(roll),
-                    "face_from_scan": m.map(|r| r.map(|x| (x * 1e6).round() / 1e6)),
-                    "nose_tip_fit_mm": l.nose_tip_in_scan.to_array().map(round3),
-                    "nose_tip_fit_offset_mm": self.fit_nose_tip_offset_mm().map(round3),
-                    "fit_rms_mm": round3(l.rms_mm),
-                    "size_vs_generic_face": round3(l.scale),
-                    "candidates_fitted": l.candidates_fitted,
-                })
-            }),
+            "orientation": self.orientation_json(),
+        })
+    }
+
+    /// The JSON's `orientation`: the axes the face was found in and how the head is turned
+    /// (`facing`, `up`, `yaw_deg`, `pitch_deg`, `roll_deg`, `face_from_scan`), and the generic
+    /// face's fit that found it; `None` without localisation.
+    pub fn orientation_json(&self) -> Option<serde_json::Value> {
+        self.localisation.map(|l| {
+            let (yaw, pitch, roll) = localise::yaw_pitch_roll_deg(l.face_from_scan);
+            let (facing, up) = localise::facing_and_up(l.face_from_scan);
+            let m = l.face_from_scan.transpose().to_cols_array_2d();
+            json!({
+                "facing": facing, "up": up,
+                "yaw_deg": round3(yaw), "pitch_deg": round3(pitch), "roll_deg": round3(roll),
+                "face_from_scan": m.map(|r| r.map(|x| (x * 1e6).round() / 1e6)),
+                "nose_tip_fit_mm": l.nose_tip_in_scan.to_array().map(round3),
+                "nose_tip_fit_offset_mm": self.fit_nose_tip_offset_mm().map(round3),
+                "fit_rms_mm": round3(l.rms_mm),
+                "size_vs_generic_face": round3(l.scale),
+                "candidates_fitted": l.candidates_fitted,
+            })
         })
     }
 }

@@ -213,6 +213,13 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
             .iter()
             .all(|a| a.landmarks_source == LandmarkSource::Detected)
     );
+    // Each detection reports the axes it found the face in (the generated scans face +z).
+    assert!(
+        first
+            .iter()
+            .all(|a| a.orientation.as_ref().is_some_and(|o| o["facing"] == "+z")),
+        "{first:?}"
+    );
     let detected: Landmarks =
         serde_json::from_value(done_of(out.path(), "subj000_frontal1")["landmarks"].clone())
             .unwrap();
@@ -245,7 +252,15 @@ fn augment_and_evaluate_use_corrections_and_redo_a_changed_one() {
     assert!(a0.redone && !a0.resumed);
     assert_eq!(a0.landmarks_source, LandmarkSource::Corrected);
     assert_eq!(a0.corrected_points, ["nose_tip"]);
-    assert!(by_stem(&second, "subj001_frontal1").resumed);
+    let resumed = by_stem(&second, "subj001_frontal1");
+    assert!(resumed.resumed);
+    // A resumed scan keeps the orientation its finished run recorded; corrected points came
+    // from a file, not a detection.
+    assert_eq!(
+        resumed.orientation,
+        by_stem(&first, "subj001_frontal1").orientation
+    );
+    assert_eq!(a0.orientation, None);
     let done = done_of(out.path(), "subj000_frontal1");
     let used: Landmarks = serde_json::from_value(done["landmarks"].clone()).unwrap();
     assert_eq!(used, points);
