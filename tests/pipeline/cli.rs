@@ -171,6 +171,23 @@ fn assert_same_points(a: &serde_json::Value, b: &serde_json::Value, tol_mm: f64)
     }
 }
 
+/// cara1_frontal1 and a copy of it scaled by `factor` (file units per millimetre), written as
+/// `dir/name`.
+fn cara1_scaled(
+    dir: &std::path::Path,
+    factor: f64,
+    name: &str,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let src = common::gavab("cara1_frontal1.wrl");
+    let mut mesh = facesynth::io::read_mesh(&src).unwrap();
+    for p in &mut mesh.positions_mm {
+        *p *= factor;
+    }
+    let scaled = dir.join(name);
+    facesynth::io::write_mesh(&scaled, &mesh).unwrap();
+    (src, scaled)
+}
+
 /// A real scan exported in metres (a face 0.2 units wide, as a real head scan came) is scaled
 /// to millimetres, said on stderr with the file's name and in `landmarks`' and `info`'s
 /// `units`, and gives the points of the millimetre scan; `--units mm` reads it as it is and
@@ -178,13 +195,7 @@ fn assert_same_points(a: &serde_json::Value, b: &serde_json::Value, tol_mm: f64)
 #[test]
 fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
     let dir = tempfile::tempdir().unwrap();
-    let src = common::gavab("cara1_frontal1.wrl");
-    let mut mesh = facesynth::io::read_mesh(&src).unwrap();
-    for p in &mut mesh.positions_mm {
-        *p *= 0.001;
-    }
-    let metres = dir.path().join("head_in_metres.ply");
-    facesynth::io::write_mesh(&metres, &mesh).unwrap();
+    let (src, metres) = cara1_scaled(dir.path(), 0.001, "head_in_metres.ply");
     let mm = json_of(&facesynth(&["landmarks", src.to_str().unwrap()]));
     let out = facesynth(&["landmarks", metres.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -216,13 +227,7 @@ fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
 #[test]
 fn a_scan_in_centimetres_is_refused_with_the_flag_that_reads_it() {
     let dir = tempfile::tempdir().unwrap();
-    let src = common::gavab("cara1_frontal1.wrl");
-    let mut mesh = facesynth::io::read_mesh(&src).unwrap();
-    for p in &mut mesh.positions_mm {
-        *p *= 0.1;
-    }
-    let cm = dir.path().join("head_in_cm.ply");
-    facesynth::io::write_mesh(&cm, &mesh).unwrap();
+    let (src, cm) = cara1_scaled(dir.path(), 0.1, "head_in_cm.ply");
     let out = facesynth(&["landmarks", cm.to_str().unwrap()]);
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
