@@ -80,6 +80,9 @@ pub struct ScanState {
     pub mesh: Arc<Mesh>,
     pub counts: FaceCounts,
     pub bbox_mm: (DVec3, DVec3),
+    /// The unit the file was read in (the mesh is in mm whatever it was): shown in the file
+    /// panel, since a scan scaled from metres by a guess must be seen to be.
+    pub units: crate::io::UnitsRead,
     pub load_millis: f64,
 }
 

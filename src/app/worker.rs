@@ -271,7 +271,8 @@ pub fn run_job(job: Job) -> JobResult {
 
 fn load_scan(path: PathBuf) -> Result<ScanState, String> {
     let start = Instant::now();
-    let mesh = io::read_mesh(&path).map_err(|e| e.to_string())?;
+    let (mesh, units) =
+        io::read_mesh_and_units(&path, &io::default_limits()).map_err(|e| e.to_string())?;
     let bbox_mm = mesh
         .bbox_mm()
         .ok_or_else(|| format!("{}: the mesh is empty", path.display()))?;
@@ -285,6 +286,7 @@ fn load_scan(path: PathBuf) -> Result<ScanState, String> {
         mesh: Arc::new(mesh),
         path,
         bbox_mm,
+        units,
         load_millis: start.elapsed().as_secs_f64() * 1e3,
     })
 }

@@ -45,6 +45,22 @@ impl UnitsRead {
         self.units.mm_per_unit().unwrap_or(1.0)
     }
 
+    /// For people: the unit, whether it was guessed or given, and the scaling to mm where
+    /// there was one (`m (guessed from the size; scaled ×1000 to mm)`).
+    pub fn describe(self) -> String {
+        let how = if self.guessed {
+            "guessed from the size"
+        } else {
+            "given"
+        };
+        let k = self.mm_per_unit();
+        if k == 1.0 {
+            format!("mm ({how})")
+        } else {
+            format!("{} ({how}; scaled ×{k} to mm)", self.symbol())
+        }
+    }
+
     /// The unit's symbol: `mm`, `cm` or `m`.
     pub fn symbol(self) -> &'static str {
         match self.units {
@@ -167,6 +183,7 @@ mod tests {
         // Given units are applied silently, whatever the size.
         let mut m = grid(30, 2.0);
         let (read, note) = to_millimetres(&mut m, Units::Centimetres, Path::new("x"));
+        assert_eq!(read.describe(), "cm (given; scaled ×10 to mm)");
         assert_eq!(
             (read.symbol(), read.mm_per_unit(), read.guessed, note),
             ("cm", 10.0, false, None)

@@ -33,6 +33,7 @@ fn opening_a_real_scan_then_a_bad_file_keeps_the_scan_and_reports_the_file() {
     );
     let scan = doc.scan.as_ref().expect("scan loaded");
     assert_eq!(scan.mesh.vertex_count(), 13_709);
+    assert_eq!(scan.units.describe(), "mm (guessed from the size)");
     assert!(
         doc.edits.landmarks.is_none(),
         "a new scan has no landmarks yet"
@@ -44,6 +45,28 @@ fn opening_a_real_scan_then_a_bad_file_keeps_the_scan_and_reports_the_file() {
     let error = doc.error.clone().expect("an error is shown");
     assert!(error.contains("broken.wrl"), "{error}");
     assert_eq!(doc.scan.as_ref().unwrap().mesh.vertex_count(), 13_709);
+}
+
+/// A scan in metres opens scaled to millimetres, and the file panel says so (a desktop user
+/// sees no stderr).
+#[test]
+fn a_scan_in_metres_opens_in_millimetres_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut mesh = facesynth::io::read_mesh(&common::gavab("cara1_frontal1.wrl")).unwrap();
+    for p in &mut mesh.positions_mm {
+        *p *= 0.001;
+    }
+    let metres = dir.path().join("head_in_metres.ply");
+    facesynth::io::write_mesh(&metres, &mesh).unwrap();
+    let mut doc = Document::new(generic_face::build());
+    apply(&mut doc, Command::Open(Some(metres)));
+    let scan = doc.scan.as_ref().expect("scan loaded");
+    let (lo, hi) = scan.bbox_mm;
+    assert!((100.0..300.0).contains(&(hi - lo).x), "{:?}", hi - lo);
+    assert_eq!(
+        scan.units.describe(),
+        "m (guessed from the size; scaled ×1000 to mm)"
+    );
 }
 
 #[test]

@@ -59,6 +59,7 @@ pub fn file_ui(app: &mut EditorApp, ui: &mut egui::Ui) {
                     "size (mm)",
                     format!("{:.1} × {:.1} × {:.1}", size.x, size.y, size.z),
                 ),
+                ("file units", scan.units.describe()),
                 ("loaded in", format!("{:.0} ms", scan.load_millis)),
             ],
         );
