@@ -415,7 +415,9 @@ pub fn register(
     report: Option<&Path>,
 ) -> Result<serde_json::Value> {
     let generic = generic_face::build();
-    let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
+    let (mesh, units) = io::read_mesh_and_units(scan, &io::default_limits())?;
+    let prepared =
+        crate::pipeline::prepare_mesh(mesh, landmarks, &generic).map_err(|e| e.in_file(scan))?;
     crate::pipeline::notify_suspect(scan, prepared.suspect_reasons());
     let result = &prepared.registration;
     if let Some(path) = out {
@@ -426,6 +428,8 @@ pub fn register(
     value["landmarks_detected"] = json!(prepared.detection.is_some());
     value["landmarks_source"] = json!(prepared.landmark_source());
     value["landmarks_file"] = json!(prepared.given.as_ref().map(|(p, _)| p));
+    // The scan's unit: the report's figures and `--out` are in millimetres whatever it was.
+    value["units"] = units_json(units);
     if let Some(d) = &prepared.detection {
         value["landmark_warnings"] = json!(d.warnings);
         // What `landmarks --json` says of the detection: how face-like, how the head is turned

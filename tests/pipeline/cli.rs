@@ -189,8 +189,8 @@ fn cara1_scaled(
 }
 
 /// A real scan exported in metres (a face 0.2 units wide, as a real head scan came) is scaled
-/// to millimetres, said on stderr with the file's name and in `landmarks`' and `info`'s
-/// `units`, and gives the points of the millimetre scan; `--units mm` reads it as it is and
+/// to millimetres, said on stderr with the file's name and in `landmarks`', `info`'s and
+/// `register`'s `units`, and gives the points of the millimetre scan; `--units mm` reads it as it is and
 /// then finds no face, and says which flag reads it.
 #[test]
 fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
@@ -216,6 +216,8 @@ fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
     );
     let info = json_of(&facesynth(&["info", metres.to_str().unwrap()]));
     assert_eq!(info["units"], scaled["units"]);
+    let registered = json_of(&facesynth(&["register", metres.to_str().unwrap()]));
+    assert_eq!(registered["units"], scaled["units"]);
     let out = facesynth(&["landmarks", metres.to_str().unwrap(), "--units", "mm"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--units m"));
