@@ -28,9 +28,10 @@
 //! and say it on stderr (`pipeline::notify_suspect`); all list it in their reports.
 //!
 //! Errors: [`detect`] fails only when there is no face to work on (a scan smaller than
-//! [`MIN_FACE_EXTENT_MM`], no front-facing region, nothing that protrudes like a nose). A feature that is not found (e.g. an eye lost to a
-//! hole) is placed at its Table 2 average position and named in
-//! [`LandmarkReport::warnings`], so one bad region does not lose the whole face.
+//! [`MIN_FACE_EXTENT_MM`], no front-facing region, nothing that protrudes like a nose). A
+//! feature that is not found (e.g. an eye lost to a hole) is placed at its Table 2 average
+//! position and named in [`LandmarkReport::warnings`], so one bad region does not lose the
+//! whole face.
 //!
 //! Output: the 13 [`FeaturePoint`]s, each snapped to a mesh vertex, plus the Table 2
 //! plausibility check ([`LandmarkReport::distances`], [`LandmarkReport::warnings`]) and a
