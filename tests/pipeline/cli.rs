@@ -190,8 +190,8 @@ fn cara1_scaled(
 
 /// A real scan exported in metres (a face 0.2 units wide, as a real head scan came) is scaled
 /// to millimetres, said on stderr with the file's name and in `landmarks`', `info`'s and
-/// `register`'s `units`, and gives the points of the millimetre scan; `--units mm` reads it as it is and
-/// then finds no face, and says which flag reads it.
+/// `register`'s `units`, and gives the points of the millimetre scan; `--units mm` reads it as
+/// it is and then finds no face, and says which flag reads it.
 #[test]
 fn a_scan_in_metres_is_scaled_to_millimetres_and_said() {
     let dir = tempfile::tempdir().unwrap();
