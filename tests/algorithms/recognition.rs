@@ -246,6 +246,25 @@ fn evaluate_command_writes_the_report() {
                 .contains(p["subject"].as_str().unwrap())
         );
     }
+    // The rotation applied to every scan that gave a sample: each probe is there, facing the
+    // scanner (+z, up +y), with the head's yaw and roll within 4° of the generator's (measured
+    // at most 2.8° over 130 scans; the pitch is the face frame's, which differs from the
+    // model's by each face's own slope, so it is not compared).
+    let poses = v["poses"].as_array().unwrap();
+    for p in per {
+        assert!(poses.iter().any(|q| q["scan"] == p["file"]), "{p}");
+    }
+    for q in poses {
+        assert!(q["facing"] == "+z" && q["up"] == "+y", "{q}");
+        let truth = std::path::Path::new(q["scan"].as_str().unwrap()).with_extension("json");
+        let truth: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
+        let t = &truth["pose"]["yaw_pitch_roll_deg"];
+        for (k, i) in [("yaw_deg", 0), ("roll_deg", 2)] {
+            let d = q[k].as_f64().unwrap() - t[i].as_f64().unwrap();
+            assert!(d.abs() < 4.0, "{k} off by {d:.1}°: {q}");
+        }
+    }
     let stdout: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
     assert_eq!(stdout, v);
 }

@@ -61,7 +61,7 @@ pub use crate::recognition::dataset::{ScanFile, list_scans};
 pub use crate::recognition::sample::{Failure, Sample};
 use learned::{learned_deviations, training_scans};
 use samples::make_sample;
-pub use samples::{Samples, collect_samples};
+pub use samples::{Samples, ScanOrientation, collect_samples};
 pub use scoring::{evaluate, score, score_variants};
 use start_pose::*;
 pub use start_pose::{
@@ -201,6 +201,9 @@ pub struct Report {
     pub failures: Vec<Failure>,
     /// Scans kept whose feature points were suspect, and why ([`Samples::suspect`]).
     pub suspect: Vec<Failure>,
+    /// The rotation applied to each real scan, gallery and probes ([`Samples::poses`]): the
+    /// axes its face was found in and the head's turn.
+    pub poses: Vec<ScanOrientation>,
     /// Every probe matched, in file order: which were missed and whom they were taken for.
     pub per_probe: Vec<ProbeResult>,
     /// Gallery samples M (neutral + synthetic).

@@ -126,6 +126,9 @@ pub struct Samples {
     pub cached_landmarks: usize,
     /// Scans posed by the points of a correction file (`<stem>.landmarks.json`), not detected.
     pub corrected_landmarks: Vec<PathBuf>,
+    /// The rotation applied to each real scan that gave a sample (gallery and probes, file
+    /// order).
+    pub poses: Vec<ScanOrientation>,
     /// Augment's failures (`failures.json` and every shard's `failures.K-of-N.json`).
     pub augment_failures: Vec<serde_json::Value>,
     /// Wall time of building them, s.
@@ -135,6 +138,36 @@ pub struct Samples {
     /// `synthetic_images` (read + resample the synthetic expressions), `learned_deviations`
     /// (pose + resample the expression training scans).
     pub stage_seconds: BTreeMap<String, f64>,
+}
+
+/// The rotation the protocol applied to one scan: the pose its range image was taken in, as
+/// the scan axes the face looks along and up and the head's turn (`landmarks --json`'s
+/// `orientation` conventions, [`crate::landmarks::localise::yaw_pitch_roll_deg`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ScanOrientation {
+    pub scan: PathBuf,
+    pub facing: &'static str,
+    pub up: &'static str,
+    pub yaw_deg: f64,
+    pub pitch_deg: f64,
+    pub roll_deg: f64,
+}
+
+impl ScanOrientation {
+    fn of(scan: &Path, pose: &ScanPose) -> Self {
+        use crate::landmarks::localise::{facing_and_up, yaw_pitch_roll_deg};
+        let (facing, up) = facing_and_up(pose.face_from_scan);
+        let (yaw, pitch, roll) = yaw_pitch_roll_deg(pose.face_from_scan);
+        let round = |x: f64| (x * 10.0).round() / 10.0;
+        ScanOrientation {
+            scan: scan.to_path_buf(),
+            facing,
+            up,
+            yaw_deg: round(yaw),
+            pitch_deg: round(pitch),
+            roll_deg: round(roll),
+        }
+    }
 }
 
 /// Augment's detected feature points of a gallery scan (`AUG/<stem>/done.json`, field
@@ -285,7 +318,11 @@ pub fn collect_samples(
     let mut probes = Vec::new();
     // Synthetic expressions of each gallery scan: (mesh, frame, subject).
     let mut synthetic_jobs: Vec<(PathBuf, ScanPose, String)> = Vec::new();
+    let mut poses = Vec::new();
     for (s, r) in scans.iter().zip(results) {
+        if let Ok((_, frame)) = &r {
+            poses.push(ScanOrientation::of(&s.path, frame));
+        }
         match r {
             Ok((sample, frame)) if params.gallery_scans.contains(&s.scan) => {
                 gallery.push(sample);
@@ -353,6 +390,7 @@ pub fn collect_samples(
             .filter(|(c, k)| c.is_some() && k.is_none())
             .count(),
         corrected_landmarks,
+        poses,
         augment_failures,
         seconds: t0.elapsed().as_secs_f64(),
         stage_seconds,

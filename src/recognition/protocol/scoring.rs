@@ -274,6 +274,7 @@ fn rank_probes(
         by_probe_kind,
         failures,
         suspect: samples.suspect.clone(),
+        poses: samples.poses.clone(),
         per_probe,
         gallery_samples: gallery.len(),
         synthetic_gallery_samples: synthetic,
