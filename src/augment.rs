@@ -143,14 +143,6 @@ pub struct AugmentFailure {
     pub suspect: bool,
 }
 
-/// The orientation a finished subject's `done.json` recorded (a resumed scan is not detected
-/// again); `None` where its points came from a file, or the marker is unreadable.
-fn recorded_orientation(dir: &Path) -> Option<serde_json::Value> {
-    let text = std::fs::read_to_string(dir.join(DONE_MARKER)).ok()?;
-    let done: serde_json::Value = serde_json::from_str(&text).ok()?;
-    done.get("orientation").filter(|o| !o.is_null()).cloned()
-}
-
 /// The marker a finished subject's folder gets last: a folder without it is unfinished and is
 /// redone (its files may be from a killed run).
 pub const DONE_MARKER: &str = "done.json";
@@ -200,29 +192,31 @@ pub fn augment_recipe(params: &AugmentParams) -> Result<serde_json::Value> {
 
 /// Whether `dir` holds a finished augmentation made with `recipe` (its [`DONE_MARKER`] records
 /// the same recipe) from the same correction file (`correction`: its content, `null` for
-/// none).
+/// none); with the marker's content where it could be read (a resumed scan takes what its run
+/// recorded from it).
 fn finished_with(
     dir: &Path,
     recipe: &serde_json::Value,
     correction: &serde_json::Value,
-) -> Finished {
+) -> (Finished, Option<serde_json::Value>) {
     let Ok(text) = std::fs::read_to_string(dir.join(DONE_MARKER)) else {
-        return Finished::No;
+        return (Finished::No, None);
     };
-    match serde_json::from_str::<serde_json::Value>(&text) {
-        Ok(done) if done.get("recipe") != Some(recipe) => Finished::OtherSettings,
-        Ok(done) => {
-            let recorded = done
-                .get("landmark_file")
-                .unwrap_or(&serde_json::Value::Null);
-            if recorded == correction {
-                Finished::Same
-            } else {
-                Finished::OtherLandmarks
-            }
-        }
-        Err(_) => Finished::OtherSettings,
-    }
+    let Ok(done) = serde_json::from_str::<serde_json::Value>(&text) else {
+        return (Finished::OtherSettings, None);
+    };
+    let finished = if done.get("recipe") != Some(recipe) {
+        Finished::OtherSettings
+    } else if done
+        .get("landmark_file")
+        .unwrap_or(&serde_json::Value::Null)
+        == correction
+    {
+        Finished::Same
+    } else {
+        Finished::OtherLandmarks
+    };
+    (finished, Some(done))
 }
 
 #[derive(Debug, PartialEq)]
@@ -485,9 +479,14 @@ pub fn augment(
             };
             let r = correction_of(scan, params).map_err(failure).and_then(|correction| {
                 let json = &correction.1;
-                let finished = finished_with(&dir, &recipe, json);
+                let (finished, done) = finished_with(&dir, &recipe, json);
                 if finished == Finished::Same {
-                    let orientation = recorded_orientation(&dir);
+                    // A resumed scan is not detected again: the orientation its run recorded
+                    // (none where its points came from a file).
+                    let orientation = (done.as_ref())
+                        .and_then(|d| d.get("orientation"))
+                        .filter(|o| !o.is_null())
+                        .cloned();
                     return Ok(AugmentedScan {
                         scan: scan.clone(),
                         dir,
@@ -607,11 +606,11 @@ mod tests {
         )
         .unwrap();
         let none = serde_json::Value::Null;
-        assert_eq!(finished_with(dir.path(), &recipe, &none), Finished::Same);
+        assert_eq!(finished_with(dir.path(), &recipe, &none).0, Finished::Same);
         // A correction file added since: other feature points.
         let correction = serde_json::json!({"source": "corrected"});
         assert_eq!(
-            finished_with(dir.path(), &recipe, &correction),
+            finished_with(dir.path(), &recipe, &correction).0,
             Finished::OtherLandmarks
         );
         // Another activation, or no recipe at all: other settings.
@@ -620,15 +619,15 @@ mod tests {
             .insert("zygomatic_major".into(), 2.673986535703764);
         let other = augment_recipe(&params).unwrap();
         assert_eq!(
-            finished_with(dir.path(), &other, &none),
+            finished_with(dir.path(), &other, &none).0,
             Finished::OtherSettings
         );
         std::fs::write(dir.path().join(DONE_MARKER), "{}").unwrap();
         assert_eq!(
-            finished_with(dir.path(), &recipe, &none),
+            finished_with(dir.path(), &recipe, &none).0,
             Finished::OtherSettings
         );
         std::fs::remove_file(dir.path().join(DONE_MARKER)).unwrap();
-        assert_eq!(finished_with(dir.path(), &recipe, &none), Finished::No);
+        assert_eq!(finished_with(dir.path(), &recipe, &none).0, Finished::No);
     }
 }

@@ -355,7 +355,7 @@ pub fn run(cli: Cli) -> Result<Next> {
 
 /// `facesynth info FILE` as a JSON value.
 pub fn info(file: &Path) -> Result<serde_json::Value> {
-    let (mesh, units) = io::read_mesh_and_units(file, &io::default_limits())?;
+    let (mesh, units) = io::read_mesh_and_units(file)?;
     let counts = mesh.face_counts();
     let (lo, hi) = mesh.bbox_mm().context("mesh is empty")?;
     let round = |v: glam::DVec3| v.to_array().map(|c| (c * 1e4).round() / 1e4);
@@ -415,9 +415,7 @@ pub fn register(
     report: Option<&Path>,
 ) -> Result<serde_json::Value> {
     let generic = generic_face::build();
-    let (mesh, units) = io::read_mesh_and_units(scan, &io::default_limits())?;
-    let prepared =
-        crate::pipeline::prepare_mesh(mesh, landmarks, &generic).map_err(|e| e.in_file(scan))?;
+    let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
     crate::pipeline::notify_suspect(scan, prepared.suspect_reasons());
     let result = &prepared.registration;
     if let Some(path) = out {
@@ -429,15 +427,15 @@ pub fn register(
     value["landmarks_source"] = json!(prepared.landmark_source());
     value["landmarks_file"] = json!(prepared.given.as_ref().map(|(p, _)| p));
     // The scan's unit: the report's figures and `--out` are in millimetres whatever it was.
-    value["units"] = units_json(units);
+    value["units"] = json!(prepared.units.map(units_json));
     if let Some(d) = &prepared.detection {
         value["landmark_warnings"] = json!(d.warnings);
         // What `landmarks --json` says of the detection: how face-like, how the head is turned
         // (the rotation the steps worked in), and whether the points are suspect.
-        let detected = d.to_json();
-        for key in ["confidence", "orientation", "suspect", "suspect_reasons"] {
-            value[format!("landmarks_{key}")] = detected[key].clone();
-        }
+        value["landmarks_confidence"] = json!(d.confidence());
+        value["landmarks_orientation"] = json!(d.orientation_json());
+        value["landmarks_suspect"] = json!(!d.suspect.is_empty());
+        value["landmarks_suspect_reasons"] = json!(d.suspect);
     }
     if let Some(path) = report {
         io::write_text_atomic(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;

@@ -271,8 +271,7 @@ pub fn run_job(job: Job) -> JobResult {
 
 fn load_scan(path: PathBuf) -> Result<ScanState, String> {
     let start = Instant::now();
-    let (mesh, units) =
-        io::read_mesh_and_units(&path, &io::default_limits()).map_err(|e| e.to_string())?;
+    let (mesh, units) = io::read_mesh_and_units(&path).map_err(|e| e.to_string())?;
     let bbox_mm = mesh
         .bbox_mm()
         .ok_or_else(|| format!("{}: the mesh is empty", path.display()))?;

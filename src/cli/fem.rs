@@ -23,8 +23,7 @@ pub fn face_for(
         return Ok((generic, Vec::new()));
     };
     let prepared = crate::pipeline::prepare_scan(scan, landmarks, &generic)?;
-    crate::pipeline::notify_suspect(scan, prepared.suspect_reasons());
-    let suspect = prepared.suspect_reasons().to_vec();
+    let suspect = crate::pipeline::notify_suspect(scan, prepared.suspect_reasons());
     let face = GenericFace {
         mesh: prepared.registration.mesh,
         feature_vertices: generic.feature_vertices,
@@ -345,8 +344,7 @@ impl ScanPair {
     ) -> Result<Self> {
         let generic = generic_face::build();
         let prepared = crate::pipeline::prepare_scan(neutral, landmarks, &generic)?;
-        crate::pipeline::notify_suspect(neutral, prepared.suspect_reasons());
-        let neutral_suspect = prepared.suspect_reasons().to_vec();
+        let neutral_suspect = crate::pipeline::notify_suspect(neutral, prepared.suspect_reasons());
         let neutral_source = prepared.landmark_source();
         let face = GenericFace {
             mesh: prepared.registration.mesh,
@@ -357,8 +355,7 @@ impl ScanPair {
             crate::pipeline::prepare_expression_scan(expression, expression_landmarks)?;
         let expression_source = found.as_ref().map(|f| f.source());
         let expression_suspect = found.as_ref().map_or(Vec::new(), |f| {
-            crate::pipeline::notify_suspect(expression, f.suspect_reasons());
-            f.suspect_reasons().to_vec()
+            crate::pipeline::notify_suspect(expression, f.suspect_reasons())
         });
         let scan_landmarks = found.map(|f| f.landmarks);
         Ok(ScanPair {

@@ -14,7 +14,7 @@ pub fn landmarks(
     png: Option<&Path>,
     params: &crate::landmarks::LandmarkParams,
 ) -> Result<serde_json::Value> {
-    let (mut mesh, units) = io::read_mesh_and_units(input, &io::default_limits())?;
+    let (mut mesh, units) = io::read_mesh_and_units(input)?;
     let start = std::time::Instant::now();
     if denoise_first {
         denoise::denoise(&mut mesh, &denoise::DenoiseParams::default())?;

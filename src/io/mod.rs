@@ -137,12 +137,16 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
 
 /// Reads a mesh in any known format (by extension).
 pub fn read_mesh_with(path: &Path, limits: &ReadLimits) -> Result<Mesh> {
-    read_mesh_and_units(path, limits).map(|(mesh, _)| mesh)
+    read_mesh_and_units_with(path, limits).map(|(mesh, _)| mesh)
 }
 
-/// [`read_mesh_with`], with the unit the file was read in (for reports: the mesh is in
-/// millimetres whatever the file's unit).
-pub fn read_mesh_and_units(path: &Path, limits: &ReadLimits) -> Result<(Mesh, UnitsRead)> {
+/// [`read_mesh`], with the unit the file was read in (for reports: the mesh is in millimetres
+/// whatever the file's unit).
+pub fn read_mesh_and_units(path: &Path) -> Result<(Mesh, UnitsRead)> {
+    read_mesh_and_units_with(path, &default_limits())
+}
+
+fn read_mesh_and_units_with(path: &Path, limits: &ReadLimits) -> Result<(Mesh, UnitsRead)> {
     let format = MeshFormat::from_path(path)?;
     let bytes = read_file(path, limits)?;
     parse_mesh_and_units(&bytes, format, path, limits)

@@ -426,11 +426,17 @@ impl LandmarkReport {
             "descriptors": self.descriptors.map(|d| {
                 json!({"spacing_mm": round3(d.spacing_mm), "rings": d.rings})
             }),
-            "confidence": self.localisation.map(|l| round3(l.face_likeness)),
+            "confidence": self.confidence(),
             "suspect": !self.suspect.is_empty(),
             "suspect_reasons": self.suspect,
             "orientation": self.orientation_json(),
         })
+    }
+
+    /// The JSON's `confidence`: the localisation's face-likeness to three decimals; `None`
+    /// without localisation.
+    pub fn confidence(&self) -> Option<f64> {
+        self.localisation.map(|l| round3(l.face_likeness))
     }
 
     /// The JSON's `orientation`: the axes the face was found in and how the head is turned

@@ -51,6 +51,8 @@ pub struct PreparedScan {
     /// The file the points were read from, and what it said; `None` when detected.
     pub given: Option<(std::path::PathBuf, LandmarkFile)>,
     pub registration: RegistrationResult,
+    /// The unit the scan file was read in ([`prepare_scan`]); `None` when prepared from a mesh.
+    pub units: Option<io::UnitsRead>,
 }
 
 impl PreparedScan {
@@ -71,12 +73,12 @@ fn suspect_of(detection: &Option<LandmarkReport>) -> &[String] {
 }
 
 /// Says through [`io::notify`] (stderr in the CLI) that the points detected on `path` are
-/// suspect, and why; nothing where `reasons` is empty. For the single-scan commands that go on
+/// suspect, and why; nothing where `reasons` is empty. Returns the reasons, for the report. For the single-scan commands that go on
 /// with them (`register`, `synthesize`, `export-fem`, `fit-expression`, `compare-expression`):
 /// the user asked for that scan, and a false alarm must not block the work, but what is built
 /// on wrong points is wrong. (`augment` refuses such a scan and `evaluate` poses it without
 /// them; both list it.)
-pub fn notify_suspect(path: &Path, reasons: &[String]) {
+pub fn notify_suspect(path: &Path, reasons: &[String]) -> Vec<String> {
     if !reasons.is_empty() {
         io::notify(&format!(
             "{}: suspect feature points, so what is built on them may be wrong (move them in \
@@ -86,6 +88,7 @@ pub fn notify_suspect(path: &Path, reasons: &[String]) {
             reasons.join("; ")
         ));
     }
+    reasons.to_vec()
 }
 
 /// Reads a landmark file ([`LandmarkFile`]: what `facesynth landmarks --json` and the
@@ -201,6 +204,7 @@ pub fn prepare_mesh(
         detection: points.detection,
         given: points.given,
         registration,
+        units: None,
     })
 }
 
@@ -211,8 +215,12 @@ pub fn prepare_scan(
     landmarks_file: Option<&Path>,
     generic: &GenericFace,
 ) -> Result<PreparedScan> {
-    let mesh = io::read_mesh(path)?;
-    prepare_mesh(mesh, landmarks_file, generic).map_err(|e| e.in_file(path))
+    let (mesh, units) = io::read_mesh_and_units(path)?;
+    let prepared = prepare_mesh(mesh, landmarks_file, generic).map_err(|e| e.in_file(path))?;
+    Ok(PreparedScan {
+        units: Some(units),
+        ..prepared
+    })
 }
 
 /// The gallery scans of `dir` (sorted).
