@@ -10,8 +10,9 @@ use glam::DVec2;
 pub const CHIN_MIN_S: f64 = 0.85;
 /// … and `∇xy <` this.
 pub const CHIN_MAX_GRAD_XY: f64 = 0.3;
-/// Our step 9: the chin walk starts this far below the mouth line, mm (below the lower lip),
-/// from every strip vertex in the [`CHIN_WALK_SEED_BAND_MM`] below that.
+/// Our step 9: the chin walk starts this far below the mouth line, or below an open mouth's
+/// lower-lip top edge, mm (below the lower lip), from every strip vertex in the
+/// [`CHIN_WALK_SEED_BAND_MM`] below that.
 pub const CHIN_WALK_START_BELOW_MOUTH_MM: f64 = 12.0;
 /// Our step 9: the walk goes no lower than Table 2's largest nose-tip-to-chin distance plus
 /// this, mm: enough for an open-mouthed laugh's chin, too little for a walk round a hole
@@ -63,17 +64,21 @@ pub const UPPER_LIP_REACH_MM: f64 = 12.0;
 /// Our step 9, open mouths: the lower lip's top edge is searched down to this far below the
 /// corner line, mm: a mouth opened 50 mm (about the widest) with the corners half-way.
 pub const LOWER_LIP_REACH_MM: f64 = 25.0;
+/// Our step 9, open mouths: the opening at the mouth's centre line is looked for from 2 mm
+/// above the corner line down to this far below it, mm: the lip line curves, and in a smile or
+/// a laugh the corners rise above the middle of the lips' meeting line.
+pub const OPENING_BELOW_CORNERS_MM: f64 = 6.0;
 
 impl Detector<'_> {
     /// Step 9: walk down a 16 mm wide strip from below the lower lip (centred between the
-    /// mouth corners; seeds: every strip vertex 12–32 mm below the mouth line), along mesh
-    /// edges, through vertices whose **mesh** normal faces the scanner
-    /// (`n_z > 0.5`); the chin is the reached vertex furthest down-and-forward
-    /// ([`CHIN_FORWARD_WEIGHT`]) of those at least [`CHIN_MIN_BELOW_MOUTH_MM`] below the mouth
-    /// line (none: not found), less half its distance from the strip's centre line; where
-    /// that is within [`CHIN_AT_LIMIT_MM`] of the walk's lowest line, the vertex furthest
-    /// along [`CHIN_SHALLOW_FORWARD_WEIGHT`] instead. The scan's chin–neck depth jump, or the
-    /// underside turning away, ends the walk. Changed from the paper (the lowest point of the
+    /// mouth corners; seeds: every strip vertex 12–32 mm below the mouth line, or below an
+    /// open mouth's lower-lip top edge), along mesh edges, through vertices whose **mesh**
+    /// normal faces the scanner (`n_z > 0.5`); the chin is the reached vertex furthest
+    /// down-and-forward ([`CHIN_FORWARD_WEIGHT`]) of those at least
+    /// [`CHIN_MIN_BELOW_MOUTH_MM`] below the mouth line (none: not found), less half its
+    /// distance from the strip's centre line; where that is within [`CHIN_AT_LIMIT_MM`] of the
+    /// walk's lowest line, the vertex furthest along [`CHIN_SHALLOW_FORWARD_WEIGHT`] instead.
+    /// The scan's chin–neck depth jump, or the underside turning away, ends the walk. Changed from the paper (the lowest point of the
     /// biggest `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm
     /// above the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
     /// fitted one: the 5-ring fit smooths normals across the chin's rim and lets the walk
@@ -81,9 +86,12 @@ impl Detector<'_> {
     /// lower lip's height is counted from its top edge, not from the corner line.
     pub(super) fn chin(&mut self, frame: &Frame, mid_u: f64, mouth_v: f64) -> usize {
         let lowest = -NOSE_TIP_TO_CHIN.max_mm - CHIN_WALK_MARGIN_MM;
+        // Where the lips meet, or the lower lip's top edge where the mouth is open.
+        let lip_top_v =
+            (self.open_mouth_lower_lip(frame, mid_u, mouth_v)).map_or(mouth_v, |v| v.min(mouth_v));
         // Start below the lower lip (whose underside faces down and would end the walk).
         let (top, band) = (
-            mouth_v - CHIN_WALK_START_BELOW_MOUTH_MM,
+            lip_top_v - CHIN_WALK_START_BELOW_MOUTH_MM,
             CHIN_WALK_SEED_BAND_MM,
         );
         let in_strip = |v: usize| {
@@ -116,8 +124,6 @@ impl Detector<'_> {
         };
         let at_limit = |v: usize| frame.uv(self.p(v)).y < lowest + CHIN_AT_LIMIT_MM;
         // The reached vertices below the lower lip ([`CHIN_MIN_BELOW_MOUTH_MM`]).
-        let lip_top_v =
-            (self.open_mouth_lower_lip(frame, mid_u, mouth_v)).map_or(mouth_v, |v| v.min(mouth_v));
         let below_lip = |v: &usize| frame.uv(self.p(*v)).y <= lip_top_v - CHIN_MIN_BELOW_MOUTH_MM;
         let reached = (self.strip_walk(&key, band))
             .map(|r| r.into_iter().filter(below_lip).collect::<Vec<_>>())
@@ -139,7 +145,8 @@ impl Detector<'_> {
 
     /// Our step 9, open mouths: the height (face frame `v`, mm) of the lower lip's top edge,
     /// or `None` where the mouth is closed. The lips' profile (median depth per row, see
-    /// [`LIP_PROFILE_HALF_WIDTH_MM`]) is open where, within 2 mm of the corner line, a row is
+    /// [`LIP_PROFILE_HALF_WIDTH_MM`]) is open where, from 2 mm above the corner line to
+    /// [`OPENING_BELOW_CORNERS_MM`] below it, a row is
     /// empty (a hole) or lies [`OPEN_MOUTH_STEP_MM`] behind the upper lip's front; going down
     /// through such rows, the first row [`OPEN_MOUTH_STEP_MM`] in front of the deepest one
     /// passed is the lower lip's top. A row that is neither ends the search (closed).
@@ -157,8 +164,9 @@ impl Detector<'_> {
             .filter_map(|(_, &z)| z)
             .max_by(f64::total_cmp)?;
         let cavity = |z: Option<f64>| z.is_none_or(|z| z <= upper_lip_z - OPEN_MOUTH_STEP_MM);
-        let start = (rows.iter().zip(&profile))
-            .position(|(&v, &z)| (v - mouth_v).abs() <= 2.0 && cavity(z))?;
+        let start = (rows.iter().zip(&profile)).position(|(&v, &z)| {
+            (-OPENING_BELOW_CORNERS_MM..=2.0).contains(&(v - mouth_v)) && cavity(z)
+        })?;
         let mut deepest = f64::INFINITY;
         for (&v, &z) in rows.iter().zip(&profile).skip(start) {
             if z.is_some_and(|z| z >= deepest + OPEN_MOUTH_STEP_MM) {
@@ -314,6 +322,52 @@ mod tests {
                 "hole {hole}: chin at y = {chin:.1} mm, the bend at −100"
             );
         }
+    }
+
+    /// A laugh whose corners rise above the middle of the lips' meeting line: the upper lip
+    /// hangs 4 mm below the corner line (y = −50 mm) at the centre, the cavity lies between
+    /// it and [`open_mouth`]'s lower lip (top edge y = −58 mm). The opening is found there,
+    /// and the chin stays at the bend; looking for the cavity within 2 mm of the corner line
+    /// only, the mouth read as closed and the chin went to the lower lip.
+    #[test]
+    fn an_opening_below_the_corner_line_is_an_open_mouth() {
+        let laugh = |y: f64| match y {
+            y if y > -54.0 => -15.0,
+            y if y > -58.0 => -40.0,
+            y => open_mouth(y),
+        };
+        let (chin, lip) = chin_of(laugh, |_| false);
+        let lip = lip.expect("open mouth");
+        assert!((lip + 58.0).abs() <= 2.0, "lip edge at {lip:.1}");
+        assert!(
+            (chin + 100.0).abs() <= 4.0,
+            "chin at y = {chin:.1} mm, the bend at −100"
+        );
+    }
+
+    /// A wide-open laugh's lower lip, 18 mm tall below its top edge (y = −62 mm) and 20 mm in
+    /// front of the chin, ends in an underside facing down (y = −80 to −84 mm) that no walk
+    /// passes. The walk starts below the lower lip's top edge, so it reaches the chin's bend
+    /// (y = −100 mm); started below the corner line (y = −50 mm), every seed lay on the lip
+    /// and the chin was not found.
+    #[test]
+    fn the_chin_walk_starts_below_an_open_mouths_lower_lip() {
+        let laugh = |y: f64| match y {
+            y if y > -45.0 => -15.0,
+            y if y > -62.0 => -40.0,
+            y if y > -80.0 => 0.0,
+            y if y > -84.0 => 5.0 * (y + 80.0),
+            y => -20.0 + bend(y, -100.0, 55.0),
+        };
+        let (chin, lip) = chin_of(laugh, |_| false);
+        assert!(
+            lip.is_some_and(|lip| (lip + 62.0).abs() <= 2.0),
+            "lip edge {lip:?}"
+        );
+        assert!(
+            (chin + 100.0).abs() <= 4.0,
+            "chin at y = {chin:.1} mm, the bend at −100"
+        );
     }
 
     /// The chin is at the bend under the chin's front, whether the underside turns back

@@ -1,5 +1,6 @@
 //! The lid fissure as a trench in the depth relief, shared by the refinements of steps 3
-//! (inner eye corners) and 4 (outer eye corners).
+//! (inner eye corners) and 4 (outer eye corners); step 6 (mouth corners) follows the lips'
+//! fissure through the same relief.
 
 use super::detector::Detector;
 use super::frame::{Frame, UvBox};
@@ -25,21 +26,18 @@ impl Detector<'_> {
         }
     }
 
-    /// A lid fissure near `near`: a narrow trench, each vertex's depth relative to the
-    /// Gaussian-weighted mean depth of its surroundings (σ = [`FISSURE_SMOOTHING_MM`], so a
-    /// face's own curvature and fall-off cancel) below −`min_depth_mm`. Of the regions of
-    /// such vertices in the box (mm from `near`, [`Self::lateral_from`]: lateral from, lateral
-    /// to, down, up) the one with the deepest vertex; `None` when there is none of at least
-    /// 3 vertices. Vertices beside a hole are not trench vertices (their surroundings are
-    /// one-sided).
-    pub(super) fn fissure_trench(
+    /// Relief around `near`: every vertex in the box (mm from `near`, [`Self::lateral_from`]:
+    /// lateral from, lateral to, down, up) with its position relative to `near` and its depth
+    /// relative to the Gaussian-weighted mean depth of its surroundings (σ =
+    /// [`FISSURE_SMOOTHING_MM`], so a face's own curvature and fall-off cancel), mm; `None`
+    /// beside a hole, whose surroundings are one-sided.
+    pub(super) fn relief_around(
         &self,
         frame: &Frame,
         near: usize,
         side: f64,
         (lat_from, lat_to, down, up): (f64, f64, f64, f64),
-        min_depth_mm: f64,
-    ) -> Option<Trench> {
+    ) -> Vec<Relief> {
         let search = UvBox {
             u: (lat_from, lat_to),
             v: (-down, up),
@@ -52,8 +50,7 @@ impl Detector<'_> {
             .filter(|&(_, q)| surroundings.contains(q))
             .collect();
         let two_s2 = 2.0 * FISSURE_SMOOTHING_MM * FISSURE_SMOOTHING_MM;
-        let mut mask = vec![false; self.mesh.vertex_count()];
-        let mut relief = vec![0.0; self.mesh.vertex_count()];
+        let mut out = Vec::new();
         for &(v, q) in &local {
             if !search.contains(q) {
                 continue;
@@ -69,8 +66,35 @@ impl Detector<'_> {
                     w += k;
                 }
             }
-            relief[v] = p.z - wz / w;
-            mask[v] = relief[v] < -min_depth_mm && !self.topology.touches_boundary(v);
+            let relief_mm = (!self.topology.touches_boundary(v)).then(|| p.z - wz / w);
+            out.push(Relief {
+                vertex: v,
+                at: q,
+                relief_mm,
+            });
+        }
+        out
+    }
+
+    /// A lid fissure near `near`: a narrow trench, each vertex's relief
+    /// ([`Self::relief_around`]) below −`min_depth_mm`. Of the regions of such vertices in the
+    /// box (as [`Self::relief_around`]) the one with the deepest vertex; `None` when there is
+    /// none of at least 3 vertices. Vertices beside a hole are not trench vertices.
+    pub(super) fn fissure_trench(
+        &self,
+        frame: &Frame,
+        near: usize,
+        side: f64,
+        search: (f64, f64, f64, f64),
+        min_depth_mm: f64,
+    ) -> Option<Trench> {
+        let mut mask = vec![false; self.mesh.vertex_count()];
+        let mut relief = vec![0.0; self.mesh.vertex_count()];
+        for r in self.relief_around(frame, near, side, search) {
+            if let Some(d) = r.relief_mm {
+                relief[r.vertex] = d;
+                mask[r.vertex] = d < -min_depth_mm;
+            }
         }
         let deepest = |r: &[u32]| r.iter().map(|&v| relief[v as usize]).fold(0.0, f64::min);
         self.regions(&mask)
@@ -83,6 +107,15 @@ impl Detector<'_> {
                 vertices: r,
             })
     }
+}
+
+/// One vertex of [`Detector::relief_around`].
+pub(super) struct Relief {
+    pub(super) vertex: usize,
+    /// Relative to the reference vertex, mm (lateral, up).
+    pub(super) at: DVec2,
+    /// Depth below (negative) or above the mean of its surroundings, mm; `None` beside a hole.
+    pub(super) relief_mm: Option<f64>,
 }
 
 /// A lid fissure's trench ([`Detector::fissure_trench`]).

@@ -252,6 +252,9 @@ pub struct LandmarkParams {
     /// Move each outer eye corner to its lid fissure's lateral end
     /// (`outer_eye_fissure_end`). Default on (measured: docs/measurements.md).
     pub outer_eye_at_fissure: bool,
+    /// Move each mouth corner to its lip fissure's lateral end (`mouth_fissure_end`).
+    /// Default on (measured: docs/measurements.md).
+    pub mouth_corner_at_fissure: bool,
     /// Face localisation before the nine steps ([`localise`]): the face is found among
     /// candidates by its face-likeness, the scan is turned into its frame for the steps, and the
     /// points are turned back. Default on; `None` runs the paper's steps on the scan as it is
@@ -270,6 +273,7 @@ impl Default for LandmarkParams {
             nose_probe_radius_mm: 25.0,
             inner_eye_at_fissure: true,
             outer_eye_at_fissure: true,
+            mouth_corner_at_fissure: true,
             localise: Some(localise::LocaliseParams::default()),
         }
     }

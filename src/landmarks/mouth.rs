@@ -1,6 +1,7 @@
 //! Step 6: the mouth corners.
 
 use super::detector::Detector;
+use super::fissure::Relief;
 use super::frame::{Frame, side_box};
 use super::table2::NOSE_TIP_TO_MOUTH;
 use crate::feature_points::FeaturePoint;
@@ -24,6 +25,21 @@ pub const MOUTH_CORNER_LINE_WEIGHT: f64 = 1.5;
 /// behind their front on the benchmark's truth (laughs draw it back), and its region reaches
 /// further forward than the corner itself (docs/measurements.md).
 pub const MOUTH_CORNER_MAX_BEHIND_LIPS_MM: f64 = 35.0;
+/// Our step 6: the lip fissure is followed at most this far lateral of the concave region's
+/// corner, mm.
+pub const MOUTH_FISSURE_MAX_SHIFT_MM: f64 = 15.0;
+/// Our step 6: the lip fissure is followed within this height above and below the concave
+/// region's corner, mm.
+pub const MOUTH_FISSURE_HALF_HEIGHT_MM: f64 = 3.0;
+/// Our step 6: a vertex at least this far below its surroundings (mm,
+/// [`Detector::relief_around`]) is in the lip fissure's groove.
+pub const MOUTH_FISSURE_MIN_DEPTH_MM: f64 = 0.8;
+/// Our step 6: the lip fissure ends where neither its groove nor the mouth's opening goes on
+/// within this lateral gap, mm (two sample spacings of a VIVID scan).
+pub const MOUTH_FISSURE_MAX_GAP_MM: f64 = 3.0;
+/// Our step 6: the mouth's opening is searched within this height above and below the
+/// corner, mm (parted lips: the opening's half-height, at most about the lips' own height).
+pub const MOUTH_OPENING_HALF_HEIGHT_MM: f64 = 15.0;
 
 impl Detector<'_> {
     /// Step 6: in a box per side from Table 2's nose-tip-to-mouth range (but at least
@@ -88,7 +104,79 @@ impl Detector<'_> {
                 ),
             };
         }
+        if self.params.mouth_corner_at_fissure {
+            out[0] = self.mouth_fissure_end(frame, out[0], -1.0);
+            out[1] = self.mouth_fissure_end(frame, out[1], 1.0);
+        }
         (out[0], out[1])
+    }
+
+    /// Step 6's refinement: the lateral end of the lip fissure from `near` (the mouth corner
+    /// is where the lips meet). Parted lips leave an opening, a hole in the scan, whose
+    /// concave rim ends short of the corner; the lips then meet along a groove out to the
+    /// corner. From `near`, the fissure is followed laterally within
+    /// [`MOUTH_FISSURE_HALF_HEIGHT_MM`] of its height over groove vertices
+    /// ([`MOUTH_FISSURE_MIN_DEPTH_MM`] deep) and the opening's rim
+    /// ([`Self::mouth_opening_rim`]), as long as no lateral gap exceeds
+    /// [`MOUTH_FISSURE_MAX_GAP_MM`], at most [`MOUTH_FISSURE_MAX_SHIFT_MM`]; its most lateral
+    /// vertex is the corner. Any other hole (a scanner's dropout beside a closed mouth) ends
+    /// the fissure.
+    fn mouth_fissure_end(&self, frame: &Frame, near: usize, side: f64) -> usize {
+        let h = MOUTH_FISSURE_HALF_HEIGHT_MM;
+        let rim = self.mouth_opening_rim(frame, near);
+        let mut fissure: Vec<Relief> = self
+            .relief_around(frame, near, side, (0.0, MOUTH_FISSURE_MAX_SHIFT_MM, h, h))
+            .into_iter()
+            .filter(|r| match r.relief_mm {
+                Some(d) => d < -MOUTH_FISSURE_MIN_DEPTH_MM,
+                None => rim.as_ref().is_some_and(|rim| rim[r.vertex]),
+            })
+            .collect();
+        fissure.sort_by(|a, b| a.at.x.total_cmp(&b.at.x));
+        let (mut corner, mut reach_mm) = (near, 0.0);
+        for r in fissure {
+            if r.at.x > reach_mm + MOUTH_FISSURE_MAX_GAP_MM {
+                break;
+            }
+            (corner, reach_mm) = (r.vertex, r.at.x);
+        }
+        corner
+    }
+
+    /// The rim of the mouth's opening beside `near`, where the lips are parted: the vertices
+    /// beside a hole ([`crate::mesh::Topology::touches_boundary`]) connected to one within two
+    /// rings of `near`, within [`MOUTH_OPENING_HALF_HEIGHT_MM`] of its height, when they reach
+    /// across the face's midline (an opening between the lips straddles it; a dropout beside
+    /// a corner does not). `None` otherwise. Flags per vertex.
+    fn mouth_opening_rim(&self, frame: &Frame, near: usize) -> Option<Vec<bool>> {
+        let topo = self.topology;
+        let v0 = frame.uv(self.p(near)).y;
+        let inside = |v: usize| {
+            topo.touches_boundary(v)
+                && (frame.uv(self.p(v)).y - v0).abs() <= MOUTH_OPENING_HALF_HEIGHT_MM
+        };
+        let seeds = topo.within_rings(&[near], 2);
+        let mut rim = vec![false; self.mesh.vertex_count()];
+        let mut front: Vec<usize> = (0..rim.len()).filter(|&v| seeds[v] && inside(v)).collect();
+        for &v in &front {
+            rim[v] = true;
+        }
+        while let Some(v) = front.pop() {
+            for &u in topo.neighbours(v) {
+                let u = u as usize;
+                if !rim[u] && inside(u) {
+                    rim[u] = true;
+                    front.push(u);
+                }
+            }
+        }
+        let (mut left, mut right) = (false, false);
+        for v in (0..rim.len()).filter(|&v| rim[v]) {
+            let u = frame.uv(self.p(v)).x;
+            left |= u > 0.0;
+            right |= u < 0.0;
+        }
+        (left && right).then_some(rim)
     }
 }
 
@@ -133,5 +221,61 @@ mod tests {
                 q.y
             );
         }
+    }
+
+    /// Lips meeting along a groove (2 mm deep, σ 1 mm) at v = −40 mm that ends at the corners
+    /// u = ±20 mm (face frame, 1 mm grid), on a face receding 0.01 mm/mm², without the
+    /// vertices where `hole(u, v)`; the corner each side reaches from `near_u`.
+    fn fissure_ends(near_u: f64, hole: impl Fn(f64, f64) -> bool) -> [f64; 2] {
+        let nose_tip = DVec3::new(50.0, 80.0, 0.0);
+        let z = |x: f64, y: f64| {
+            let (u, v) = (x - nose_tip.x, y - nose_tip.y);
+            let along = 1.0 / (1.0 + ((u.abs() - 20.0) / 0.7).exp());
+            -20.0 - 0.01 * u * u - 2.0 * along * (-(v + 40.0).powi(2) / 2.0).exp()
+        };
+        let mut mesh = grid(101, 81, z);
+        let keep: Vec<bool> = (mesh.positions_mm.iter())
+            .map(|p| !hole(p.x - nose_tip.x, p.y - nose_tip.y))
+            .collect();
+        mesh.retain_vertices(&keep);
+        let surface = TestSurface::new(mesh);
+        let detector = surface.detector();
+        let frame = Frame::new(nose_tip, 0.0);
+        [-1.0, 1.0].map(|side: f64| {
+            let (x, y) = (nose_tip.x + side * near_u, nose_tip.y - 40.0);
+            let at = DVec3::new(x, y, z(x, y));
+            let near = (0..surface.mesh.vertex_count())
+                .min_by(|&a, &b| {
+                    let d = |v: usize| detector.p(v).distance_squared(at);
+                    d(a).total_cmp(&d(b))
+                })
+                .unwrap();
+            frame
+                .uv(detector.p(detector.mouth_fissure_end(&frame, near, side)))
+                .x
+        })
+    }
+
+    /// Parted lips: an opening (a hole 16 mm wide and 6 mm tall, across the midline) whose
+    /// end (u = ±9 mm) is where the concave rim stops; the lips meet along the groove out to
+    /// u = ±20 mm, and the corner goes there. Closed lips with a scanner's dropout beside the
+    /// right corner (u −30 to −22 mm, not reaching the midline): the corner stays at the
+    /// groove's end, and on the groove's end it stays put.
+    #[test]
+    fn the_mouth_corner_is_the_lateral_end_of_the_lips_fissure() {
+        let lips_height = |v: f64| (-42.0..=-37.0).contains(&v);
+        let [r, l] = fissure_ends(9.0, |u, v| u.abs() <= 8.0 && lips_height(v));
+        assert!(
+            (r + 20.0).abs() <= 1.5,
+            "right corner at u = {r:.1}, not −20"
+        );
+        assert!((l - 20.0).abs() <= 1.5, "left corner at u = {l:.1}, not 20");
+        let dropout = |u: f64, v: f64| (-30.0..=-22.0).contains(&u) && lips_height(v);
+        let [r, l] = fissure_ends(19.0, dropout);
+        assert!(
+            (r + 20.0).abs() <= 1.5,
+            "right corner at u = {r:.1}: across the dropout"
+        );
+        assert!((l - 20.0).abs() <= 1.5, "left corner at u = {l:.1}, not 20");
     }
 }
