@@ -318,6 +318,16 @@ fn expressions_learned_from_other_people_join_the_within_class_scatter() {
             .reason
             .starts_with("expression training: ")
     );
+    // Every training scan that gave an image reports its pose: the 20 generated ones facing the
+    // scanner, the profile turned well away from it.
+    let training_poses: Vec<_> = (samples.poses.iter())
+        .filter(|p| p.scan.starts_with(training.path()))
+        .collect();
+    assert_eq!(training_poses.len(), 4 * 5 + 1, "{training_poses:?}");
+    for p in &training_poses {
+        let profile = p.scan.ends_with("profile_risa.wrl");
+        assert_eq!(profile, p.yaw_deg.abs() > 30.0, "{p:?}");
+    }
     let learned = protocol::score(&samples, true, &params).unwrap().report;
     assert_eq!(learned.learned_deviations, 16);
     assert_eq!(learned.expression_training_subjects, 4);

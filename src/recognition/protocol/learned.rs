@@ -37,17 +37,23 @@ pub(super) fn training_scans(
 /// probe-kind scan's range image minus that gallery scan's, both posed as the evaluated scans
 /// are (`reference`: the evaluated gallery's alignment reference, so the deviations live in
 /// the same frame). Scans that fail are added to `failures` and skipped; scans posed despite
-/// suspect feature points ([`scan_pose_checked`]) are added to `suspect`.
+/// suspect feature points ([`scan_pose_checked`]) are added to `suspect`; the rotation applied
+/// to each scan that gave an image is added to `poses`.
 pub(super) fn learned_deviations(
     dir: &Path,
     scans: &[ScanFile],
     params: &ProtocolParams,
     generic: &GenericFace,
     reference: Option<&RangeImage>,
-    (failures, suspect): (&mut Vec<Failure>, &mut Vec<Failure>),
+    (failures, suspect, poses): (
+        &mut Vec<Failure>,
+        &mut Vec<Failure>,
+        &mut Vec<ScanOrientation>,
+    ),
 ) -> Result<(Vec<Vec<f64>>, Vec<String>)> {
     const CONTEXT: &str = "expression training: ";
-    let results: Vec<(std::result::Result<Sample, Failure>, Vec<String>)> = scans
+    type Posed = std::result::Result<(Sample, ScanOrientation), Failure>;
+    let results: Vec<(Posed, Vec<String>)> = scans
         .par_iter()
         .map(|s| {
             let (start, reasons) = match scan_pose_checked(&s.path, params, generic, None) {
@@ -61,7 +67,7 @@ pub(super) fn learned_deviations(
                 }
             };
             let sample = make_sample(&s.path, start, &s.subject, &s.scan, params, reference)
-                .map(|(sample, _)| sample)
+                .map(|(sample, frame)| (sample, ScanOrientation::of(&s.path, &frame)))
                 .map_err(|f| Failure {
                     reason: format!("{CONTEXT}{}", f.reason),
                     ..f
@@ -76,7 +82,9 @@ pub(super) fn learned_deviations(
             if !reasons.is_empty() {
                 suspect.push(suspect_scan(&s.path, &reasons, CONTEXT));
             }
-            r.map_err(|f| failures.push(f)).ok()
+            let (sample, pose) = r.map_err(|f| failures.push(f)).ok()?;
+            poses.push(pose);
+            Some(sample)
         })
         .collect();
     // Each person's first gallery-kind scan that gave an image.

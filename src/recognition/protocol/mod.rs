@@ -201,8 +201,8 @@ pub struct Report {
     pub failures: Vec<Failure>,
     /// Scans kept whose feature points were suspect, and why ([`Samples::suspect`]).
     pub suspect: Vec<Failure>,
-    /// The rotation applied to each real scan, gallery and probes ([`Samples::poses`]): the
-    /// axes its face was found in and the head's turn.
+    /// The rotation applied to each real scan, gallery, probes and expression-training scans
+    /// ([`Samples::poses`]): the axes its face was found in and the head's turn.
     pub poses: Vec<ScanOrientation>,
     /// Every probe matched, in file order: which were missed and whom they were taken for.
     pub per_probe: Vec<ProbeResult>,

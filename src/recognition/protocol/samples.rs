@@ -127,7 +127,7 @@ pub struct Samples {
     /// Scans posed by the points of a correction file (`<stem>.landmarks.json`), not detected.
     pub corrected_landmarks: Vec<PathBuf>,
     /// The rotation applied to each real scan that gave a sample (gallery and probes, file
-    /// order).
+    /// order; then the expression-training scans, [`ProtocolParams::expression_training`]).
     pub poses: Vec<ScanOrientation>,
     /// Augment's failures (`failures.json` and every shard's `failures.K-of-N.json`).
     pub augment_failures: Vec<serde_json::Value>,
@@ -154,7 +154,7 @@ pub struct ScanOrientation {
 }
 
 impl ScanOrientation {
-    fn of(scan: &Path, pose: &ScanPose) -> Self {
+    pub(super) fn of(scan: &Path, pose: &ScanPose) -> Self {
         use crate::landmarks::localise::{facing_and_up, yaw_pitch_roll_deg};
         let (facing, up) = facing_and_up(pose.face_from_scan);
         let (yaw, pitch, roll) = yaw_pitch_roll_deg(pose.face_from_scan);
@@ -371,7 +371,7 @@ pub fn collect_samples(
             params,
             &generic,
             reference.as_ref(),
-            (&mut failures, &mut suspect),
+            (&mut failures, &mut suspect, &mut poses),
         )?,
         _ => (Vec::new(), Vec::new()),
     };
