@@ -78,12 +78,13 @@ impl Detector<'_> {
     /// [`CHIN_MIN_BELOW_MOUTH_MM`] below the mouth line (none: not found), less half its
     /// distance from the strip's centre line; where that is within [`CHIN_AT_LIMIT_MM`] of the
     /// walk's lowest line, the vertex furthest along [`CHIN_SHALLOW_FORWARD_WEIGHT`] instead.
-    /// The scan's chin–neck depth jump, or the underside turning away, ends the walk. Changed from the paper (the lowest point of the
-    /// biggest `S > 0.85`, `∇xy < 0.3` region): that region is the front of the chin, ~10 mm
-    /// above the jaw-contour chin point (iBUG 8) of the benchmark. The mesh normal is used, not the
-    /// fitted one: the 5-ring fit smooths normals across the chin's rim and lets the walk
-    /// run on down the neck. Where the mouth is open ([`Self::open_mouth_lower_lip`]), the
-    /// lower lip's height is counted from its top edge, not from the corner line.
+    /// The scan's chin–neck depth jump, or the underside turning away, ends the walk. Changed
+    /// from the paper (the lowest point of the biggest `S > 0.85`, `∇xy < 0.3` region): that
+    /// region is the front of the chin, ~10 mm above the jaw-contour chin point (iBUG 8) of the
+    /// benchmark. The mesh normal is used, not the fitted one: the 5-ring fit smooths normals
+    /// across the chin's rim and lets the walk run on down the neck. Where the mouth is open
+    /// ([`Self::open_mouth_lower_lip`]), the lower lip's height is counted from its top edge,
+    /// not from the corner line.
     pub(super) fn chin(&mut self, frame: &Frame, mid_u: f64, mouth_v: f64) -> usize {
         let lowest = -NOSE_TIP_TO_CHIN.max_mm - CHIN_WALK_MARGIN_MM;
         // Where the lips meet, or the lower lip's top edge where the mouth is open.
